@@ -1,0 +1,55 @@
+"""The ``bench`` command line: one module per subcommand in :mod:`bench.commands`.
+
+Errors meant for the user (:class:`~bench.errors.BenchError`) print one line,
+``bench: error: ...``, and exit with code 2; warnings print ``bench: warning: ...``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import traceback
+import warnings
+
+from bench import __version__
+from bench.commands import list as list_cmd
+from bench.commands import simplify as simplify_cmd
+from bench.errors import BenchError
+
+COMMANDS = {"list": list_cmd, "simplify": simplify_cmd}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="bench", description="Benchmark suite for appearance-preserving mesh simplification.")
+    parser.add_argument("--version", action="version", version=f"bench {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show full tracebacks of failures (for bug reports)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, module in COMMANDS.items():
+        module.add_parser(sub, name)
+    return parser
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"bench: warning: {message}", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    warnings.showwarning = _show_warning
+    try:
+        return int(args.run(args) or 0)
+    except BenchError as exc:
+        if args.debug:
+            traceback.print_exception(exc)
+        print(f"bench: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("bench: interrupted", file=sys.stderr)
+        return 130
+
+
+def entry() -> None:  # console script
+    sys.exit(main())

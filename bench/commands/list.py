@@ -1,0 +1,65 @@
+"""``bench list [methods|models|metrics]``: what is registered, from where, and whether
+it can run here."""
+
+from __future__ import annotations
+
+import warnings
+
+from bench.registry import registry
+
+KINDS = {"methods": "method", "models": "model", "metrics": "metric"}
+
+
+def add_parser(sub, name: str) -> None:
+    p = sub.add_parser(name, help="list registered methods, models and metrics",
+                       description=__doc__)
+    p.add_argument("what", nargs="?", choices=list(KINDS), help="only this kind (default: all)")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    kinds = [args.what] if args.what else list(KINDS)
+    for i, plural in enumerate(kinds):
+        if i:
+            print()
+        rows = [_row(KINDS[plural], e) for e in registry(KINDS[plural])]
+        print(f"{plural} ({len(rows)})")
+        _table(rows)
+    return 0
+
+
+def _row(kind: str, entry) -> dict:
+    row = {"name": entry.name}
+    if not entry.available:
+        row.update(status="unavailable", detail=entry.problem)
+    else:
+        obj = entry.load()
+        if kind == "method":
+            row.update(version=obj.version, view="dependent" if obj.view_dependent else "",
+                       detail=obj.summary)
+        elif kind == "metric":
+            row.update(unit=obj.unit, direction=obj.direction, detail=obj.summary)
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                try:
+                    s = obj.load().summary()
+                except Exception as exc:  # a broken model is listed, not fatal
+                    row.update(status="unavailable", detail=str(exc))
+                    return row | {"origin": entry.origin}
+            row.update(faces=s["faces"], vertices=s["render_vertices"],
+                       welded=s["welded_vertices"], texture="yes" if s["texture"] else "no",
+                       detail=obj.source)
+    row["origin"] = entry.origin
+    return row
+
+
+def _table(rows: list[dict]) -> None:
+    if not rows:
+        print("  (none)")
+        return
+    cols = list(dict.fromkeys(k for r in rows for k in r if k != "detail")) + ["detail"]
+    width = {c: max(len(c), *(len(str(r.get(c, ""))) for r in rows)) for c in cols}
+    print("  " + "  ".join(c.ljust(width[c]) for c in cols).rstrip())
+    for r in rows:
+        print("  " + "  ".join(str(r.get(c, "")).ljust(width[c]) for c in cols).rstrip())

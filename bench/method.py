@@ -1,0 +1,177 @@
+"""The interface every simplification method implements, and how methods are run.
+
+A method is a class with class attributes describing it and one ``simplify`` call::
+
+    class MyMethod(Method):
+        name = "my-method"
+        version = "1"          # bump whenever the output for the same input changes
+        summary = "one line"
+        reference = "Author, Title, Venue Year"
+
+        @dataclass
+        class Params:
+            strength: float = 1.0
+
+        def simplify(self, mesh, target_faces, ctx=None) -> SimplifyResult: ...
+
+Register it under the ``bench.methods`` entry-point group and it appears in
+``bench list methods`` and can be used by ``bench simplify`` and ``bench run``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import typing
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from bench.errors import BenchError, InputError, MethodError, ParamError
+from bench.mesh import Mesh
+from bench.registry import suggest
+
+__all__ = ["Method", "SimplifyResult", "parse_params", "run_method", "target_tolerance",
+           "resolve_target"]
+
+
+@dataclass
+class SimplifyResult:
+    """What a method returns.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The simplified mesh.
+    stats : dict
+        Method statistics (collapses, evaluations, ...), JSON-serialisable.
+    stop_reason : str or None
+        Why the method stopped away from the target; None when it reached it.
+    """
+
+    mesh: Mesh
+    stats: dict = field(default_factory=dict)
+    stop_reason: str | None = None
+
+
+class Method:
+    """Base class of simplification methods (see the module docstring)."""
+
+    name: ClassVar[str] = ""
+    version: ClassVar[str] = "1"
+    summary: ClassVar[str] = ""
+    reference: ClassVar[str] = ""
+    view_dependent: ClassVar[bool] = False
+    requires: ClassVar[dict[str, str]] = {}  #: import name -> pip requirement
+
+    @dataclass
+    class Params:
+        pass
+
+    def __init__(self, params: Any = None, **overrides):
+        if params is None:
+            params = self.Params()
+        if overrides:
+            params = dataclasses.replace(params, **overrides)
+        self.params = params
+
+    def simplify(self, mesh: Mesh, target_faces: int, ctx: Any = None) -> SimplifyResult:
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.params})"
+
+
+def target_tolerance(target: int) -> int:
+    """Allowed distance from a face target: max(2, 0.5 % of the target)."""
+    return max(2, int(0.005 * target))
+
+
+def resolve_target(n_faces: int, faces: int | None = None, ratio: float | None = None) -> int:
+    """A face target from an absolute count or a ratio of ``n_faces``."""
+    if (faces is None) == (ratio is None):
+        raise InputError("give exactly one of --faces N or --ratio R")
+    if ratio is not None:
+        if not 0 < ratio <= 1:
+            raise InputError(f"--ratio must be in (0, 1], got {ratio}")
+        faces = max(1, round(ratio * n_faces))
+    if faces < 1:
+        raise InputError(f"--faces must be at least 1, got {faces}")
+    return int(faces)
+
+
+def run_method(method: Method, mesh: Mesh, target_faces: int, ctx: Any = None) -> SimplifyResult:
+    """Run ``method`` and record timing and whether it reached the target.
+
+    A target at or above the input's face count returns the input unchanged (with a
+    warning), since no simplification can reach it. A result outside
+    :func:`target_tolerance` without a reason from the method gets one recorded.
+    """
+    if target_faces >= mesh.n_faces:
+        warnings.warn(f"target of {target_faces} faces is not below the input's "
+                      f"{mesh.n_faces}; returning the input unchanged", stacklevel=2)
+        return SimplifyResult(mesh, {"wall_seconds": 0.0, "cpu_seconds": 0.0},
+                              stop_reason=f"input already has {mesh.n_faces} faces")
+    wall, cpu = time.perf_counter(), time.process_time()
+    try:
+        result = method.simplify(mesh, target_faces, ctx)
+    except BenchError:
+        raise
+    except Exception as exc:  # a backend failure: one line for the user, cause chained
+        raise MethodError(f"method '{method.name}' failed on {mesh.name}: "
+                          f"{type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''}"
+                          " (run with --debug for the traceback)") from exc
+    result.stats.setdefault("wall_seconds", time.perf_counter() - wall)
+    result.stats.setdefault("cpu_seconds", time.process_time() - cpu)
+    reached = result.mesh.n_faces
+    if result.stop_reason is None and abs(reached - target_faces) > target_tolerance(target_faces):
+        result.stop_reason = (f"reached {reached} faces for a target of {target_faces} "
+                              f"(tolerance {target_tolerance(target_faces)})")
+    return result
+
+
+def parse_params(params_cls: type, items: list[str] | None) -> Any:
+    """Build a Params dataclass from ``key=value`` strings, converting by field type.
+
+    Raises
+    ------
+    ParamError
+        Unknown key (with a suggestion), malformed item, or a value of the wrong type.
+    """
+    fields = {f.name: f for f in dataclasses.fields(params_cls)}
+    hints = typing.get_type_hints(params_cls)
+    values = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        key = key.strip().replace("-", "_")
+        if not sep:
+            raise ParamError(f"--param {item!r}: expected key=value")
+        if key not in fields:
+            known = ", ".join(fields) or "none"
+            hint = suggest(key, fields)
+            raise ParamError(f"unknown parameter '{key}'{hint} (accepted: {known})")
+        values[key] = _convert(key, raw.strip(), hints[key])
+    return params_cls(**values)
+
+
+def _convert(key: str, raw: str, kind):
+    origin = typing.get_origin(kind)
+    if origin is typing.Literal:
+        choices = typing.get_args(kind)
+        if raw not in choices:
+            raise ParamError(f"parameter '{key}' must be one of {', '.join(map(str, choices))}; "
+                             f"got '{raw}'{suggest(raw, choices)}")
+        return raw
+    if kind is bool:
+        lowered = raw.lower()
+        if lowered in ("1", "true", "yes", "on"):
+            return True
+        if lowered in ("0", "false", "no", "off"):
+            return False
+        raise ParamError(f"parameter '{key}' expects true or false, got '{raw}'")
+    if kind in (int, float, str):
+        try:
+            return kind(raw)
+        except ValueError:
+            raise ParamError(f"parameter '{key}' expects {kind.__name__}, got '{raw}'") from None
+    raise ParamError(f"parameter '{key}' of type {kind} cannot be set from the command line")

@@ -1,0 +1,103 @@
+"""The model catalog: built-in test meshes, and any mesh file given by path.
+
+Built-ins are registered under the ``bench.models`` entry-point group like any
+plug-in model, each as a :class:`ModelSpec`. :func:`resolve_model` turns a command-line
+word into a :class:`~bench.mesh.Mesh`: a registered name, or else a path to a file.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+from bench.errors import InputError, UnknownNameError
+from bench.registry import suggest
+from bench.mesh import Mesh
+
+__all__ = ["ModelSpec", "BUNNY", "BUNNY_TEXTURED", "TORUS", "resolve_model", "pymeshlab_sample"]
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A named model: how to obtain it and where it comes from."""
+
+    name: str
+    description: str
+    source: str
+    loader: Callable[[], Mesh]
+    requires: dict = field(default_factory=dict)
+
+    def load(self) -> Mesh:
+        mesh = self.loader()
+        return mesh.replace(name=self.name, metadata={**mesh.metadata, "model": self.name})
+
+
+def pymeshlab_sample(filename: str) -> Path:
+    """Path of a mesh shipped in pymeshlab's ``tests/sample_meshes`` folder."""
+    import pymeshlab
+
+    path = Path(pymeshlab.__file__).parent / "tests" / "sample_meshes" / filename
+    if not path.exists():
+        raise InputError(f"{path}: pymeshlab's sample mesh is missing; reinstall with "
+                         "pip install --force-reinstall pymeshlab")
+    return path
+
+
+def _load_sample(filename: str) -> Callable[[], Mesh]:
+    def load() -> Mesh:
+        from bench.meshio import load_mesh
+
+        return load_mesh(pymeshlab_sample(filename))
+    return load
+
+
+def _torus() -> Mesh:
+    from bench.torus import make_torus
+
+    return make_torus()
+
+
+BUNNY = ModelSpec(
+    "bunny", "Stanford bunny, flat-shaded comparisons of Lindstrom & Turk 2000",
+    "pymeshlab tests/sample_meshes/bunny.obj", _load_sample("bunny.obj"),
+    requires={"pymeshlab": "pymeshlab>=2023.12"})
+BUNNY_TEXTURED = ModelSpec(
+    "bunny-textured", "10k-face bunny with a texture atlas and real UV seams",
+    "pymeshlab tests/sample_meshes/bunny10k_textured.obj + TextureDouble_A.png",
+    _load_sample("bunny10k_textured.obj"), requires={"pymeshlab": "pymeshlab>=2023.12"})
+TORUS = ModelSpec(
+    "torus", "swept spinning-ellipse torus with a non-linear texture map (L&T 2000 §5.4)",
+    "procedural (bench.torus, seed 2000)", _torus)
+
+
+def _looks_like_path(word: str) -> bool:
+    return os.sep in word or "/" in word or Path(word).suffix != "" or Path(word).exists()
+
+
+@lru_cache(maxsize=8)
+def _load_registered(name: str) -> Mesh:
+    from bench.registry import registry
+
+    return registry("model").load(name).load()
+
+
+def resolve_model(word: str) -> Mesh:
+    """A registered model's mesh, or the mesh in the file ``word``.
+
+    Registered names win over files of the same name in the working directory only
+    when the word has no extension or path separator.
+    """
+    from bench.meshio import load_mesh
+    from bench.registry import registry
+
+    models = registry("model")
+    if word in models:
+        return _load_registered(word)
+    if _looks_like_path(word):
+        return load_mesh(word)
+    hint = suggest(word, models.names())
+    raise UnknownNameError(f"unknown model '{word}'{hint} (not a file either; "
+                           "`bench list models` shows the built-in names)")

@@ -1,0 +1,154 @@
+"""Plug-in registry: methods, metrics and models found through entry points.
+
+The suite's own methods, metrics and models are registered in its ``pyproject.toml``
+under the same entry-point groups a third-party package would use::
+
+    [project.entry-points."bench.methods"]
+    my-method = "my_package.module:MyMethod"
+
+Entries are loaded lazily (importing a method must not import every backend). A
+plug-in object may declare ``requires = {"import_name": "pip requirement"}``; when one
+is missing the entry stays listed, marked unavailable, with the pip command that fixes
+it. Two distributions registering one name is an error naming both.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib.util
+from dataclasses import dataclass, field
+from importlib.metadata import EntryPoint, entry_points
+
+from bench.errors import RegistryError, UnavailableError, UnknownNameError
+
+__all__ = ["GROUPS", "Entry", "Registry", "registry", "suggest"]
+
+#: kind -> entry-point group
+GROUPS = {"method": "bench.methods", "metric": "bench.metrics", "model": "bench.models"}
+
+
+def suggest(name: str, candidates) -> str:
+    """'; did you mean 'x'?' for the closest candidate, or '' when none is close."""
+    close = difflib.get_close_matches(name, list(candidates), n=3, cutoff=0.6)
+    if not close:
+        return ""
+    return "; did you mean " + " or ".join(f"'{c}'" for c in close) + "?"
+
+
+@dataclass
+class Entry:
+    """One registered plug-in, not yet imported."""
+
+    kind: str
+    name: str
+    target: str  #: "module:attribute"
+    origin: str  #: "distribution version" that registered it
+    entry_point: EntryPoint | None = field(default=None, repr=False)
+    _object: object = field(default=None, repr=False)
+    _problem: str | None = field(default=None, repr=False)
+    _loaded: bool = field(default=False, repr=False)
+
+    def _load(self) -> None:
+        if self._loaded:
+            return
+        self._loaded = True
+        try:
+            self._object = self.entry_point.load()
+        except ImportError as exc:
+            module = getattr(exc, "name", None) or str(exc)
+            self._problem = f"cannot import {module}; try: pip install {module}"
+            return
+        except Exception as exc:  # a broken plug-in must not break `bench list`
+            self._problem = f"failed to load {self.target}: {type(exc).__name__}: {exc}"
+            return
+        missing = [pip for mod, pip in getattr(self._object, "requires", {}).items()
+                   if importlib.util.find_spec(mod) is None]
+        if missing:
+            self._problem = "missing backend; install with: pip install " + " ".join(missing)
+
+    @property
+    def available(self) -> bool:
+        self._load()
+        return self._problem is None
+
+    @property
+    def problem(self) -> str | None:
+        """Why the entry is unavailable, with the fix; None when it is available."""
+        self._load()
+        return self._problem
+
+    def load(self):
+        """The registered object; raises UnavailableError with the fix if it cannot run."""
+        self._load()
+        if self._problem is not None:
+            raise UnavailableError(f"{self.kind} '{self.name}' is unavailable: {self._problem}")
+        return self._object
+
+
+class Registry:
+    """All entries of one kind ('method', 'metric' or 'model').
+
+    Parameters
+    ----------
+    kind : str
+        A key of :data:`GROUPS`.
+    eps : iterable of EntryPoint, optional
+        Entry points to use instead of the installed ones (for tests and embedding).
+    """
+
+    def __init__(self, kind: str, eps=None):
+        if kind not in GROUPS:
+            raise ValueError(f"unknown registry kind {kind!r}; expected one of {list(GROUPS)}")
+        self.kind = kind
+        self._entries: dict[str, Entry] = {}
+        found = entry_points(group=GROUPS[kind]) if eps is None else eps
+        for ep in found:
+            self._add(ep)
+
+    def _add(self, ep: EntryPoint) -> None:
+        dist = getattr(ep, "dist", None)
+        origin = f"{dist.name} {dist.version}" if dist is not None else "(not installed)"
+        entry = Entry(self.kind, ep.name, ep.value, origin, ep)
+        old = self._entries.get(ep.name)
+        if old is not None:
+            if old.target == entry.target:  # the same distribution seen twice on sys.path
+                return
+            raise RegistryError(
+                f"{self.kind} '{ep.name}' is registered twice: by {old.origin} "
+                f"({old.target}) and by {entry.origin} ({entry.target}); uninstall one "
+                f"of them or rename the entry point in group '{GROUPS[self.kind]}'")
+        self._entries[ep.name] = entry
+
+    def names(self) -> list[str]:
+        return sorted(self._entries)
+
+    def __iter__(self):
+        return iter(self._entries[n] for n in self.names())
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._entries
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def entry(self, name: str) -> Entry:
+        """The entry called ``name``; UnknownNameError with suggestions otherwise."""
+        try:
+            return self._entries[name]
+        except KeyError:
+            hint = suggest(name, self._entries) or f"; `bench list {self.kind}s` shows all"
+            raise UnknownNameError(f"unknown {self.kind} '{name}'{hint}") from None
+
+    def load(self, name: str):
+        """The object registered as ``name`` (imported on first use)."""
+        return self.entry(name).load()
+
+
+_cache: dict[str, Registry] = {}
+
+
+def registry(kind: str) -> Registry:
+    """The process-wide registry of installed plug-ins of ``kind``."""
+    if kind not in _cache:
+        _cache[kind] = Registry(kind)
+    return _cache[kind]

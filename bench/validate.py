@@ -1,0 +1,124 @@
+"""Checks and cleaning for mesh data from outside the suite.
+
+Every failure is an :class:`~bench.errors.InputError` whose one-line message starts
+with the source (usually a file name) and says what is wrong and what to do; every
+repair is a :class:`~bench.errors.MeshWarning` that says what was changed.
+
+=========================  ===============================================
+problem                    outcome
+=========================  ===============================================
+no faces                   error (a point cloud cannot be simplified)
+NaN / inf positions        error
+face index out of range    error
+non-triangle faces         triangulated by the loader, warning with count
+degenerate faces           dropped, warning with count
+missing texture image      warning, mesh loaded untextured (UVs kept)
+non-manifold edges         allowed, warning with count
+=========================  ===============================================
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from bench.errors import InputError, MeshWarning
+from bench.mesh import Mesh
+
+__all__ = ["build_mesh", "warn"]
+
+
+def warn(message: str) -> None:
+    """Issue a :class:`MeshWarning` (shown by the CLI as one ``bench: warning:`` line)."""
+    warnings.warn(message, MeshWarning, stacklevel=3)
+
+
+def build_mesh(positions, faces, *, source: str, uv=None, normals=None, colors=None,
+               texture=None, name: str | None = None, metadata: dict | None = None) -> Mesh:
+    """Validate raw arrays and return a clean :class:`Mesh`.
+
+    Parameters
+    ----------
+    positions : array_like of shape (n, 3)
+    faces : array_like of shape (m, 3) of int
+    source : str
+        What to name in messages (a file path or a model name).
+    uv, normals, colors, texture, name, metadata
+        As in :class:`Mesh`. Attribute arrays with the wrong number of rows are
+        dropped with a warning rather than failing the load.
+
+    Returns
+    -------
+    Mesh
+        With degenerate faces removed and unused vertices kept (indices unchanged).
+
+    Raises
+    ------
+    InputError
+        No faces, non-finite positions, indices out of range, malformed arrays.
+    """
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.ndim != 2 or positions.shape[1] != 3:
+        raise InputError(f"{source}: positions must be an (n, 3) array, got shape {positions.shape}")
+    faces = np.asarray(faces)
+    if faces.size == 0:
+        raise InputError(f"{source}: the mesh has no faces (a point cloud or line set "
+                         "cannot be simplified); export it with its triangles")
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise InputError(f"{source}: faces must be an (m, 3) array of triangles, got shape {faces.shape}")
+    if not np.issubdtype(faces.dtype, np.integer):
+        raise InputError(f"{source}: face indices must be integers, got {faces.dtype}")
+
+    bad = ~np.isfinite(positions).all(axis=1)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{source}: {int(bad.sum())} vertices have NaN or infinite coordinates "
+                         f"(first: vertex {first}); fix or remove them before simplifying")
+
+    n = len(positions)
+    out = (faces < 0) | (faces >= n)
+    if out.any():
+        f = int(np.flatnonzero(out.any(axis=1))[0])
+        idx = int(faces[f][out[f]][0])
+        raise InputError(f"{source}: face {f} refers to vertex {idx} but the mesh has {n} "
+                         f"vertices ({int(out.any(axis=1).sum())} faces out of range); "
+                         "the file is corrupt or truncated")
+    faces = faces.astype(np.int32)
+
+    attrs = {}
+    for attr, value, width in (("uv", uv, 2), ("normals", normals, 3), ("colors", colors, 4)):
+        if value is None:
+            continue
+        value = np.asarray(value)
+        if value.ndim != 2 or value.shape != (n, width):
+            warn(f"{source}: ignoring {attr} of shape {value.shape} (expected ({n}, {width}))")
+            continue
+        if not np.isfinite(value.astype(np.float64)).all():
+            warn(f"{source}: ignoring {attr}: they contain NaN or infinite values")
+            continue
+        attrs[attr] = value
+
+    mesh = Mesh(positions, faces, texture=texture, name=name or source,
+                metadata=dict(metadata or {}), **attrs)
+    mesh = _drop_degenerate(mesh, source)
+    nm = int(mesh.welded.non_manifold.sum())
+    if nm:
+        warn(f"{source}: {nm} non-manifold edges (more than two faces); allowed, but some "
+             "methods treat them as locked")
+    return mesh
+
+
+def _drop_degenerate(mesh: Mesh, source: str) -> Mesh:
+    """Drop faces with a repeated (welded) corner or exactly zero area."""
+    w = mesh.welded.faces
+    repeated = (w[:, 0] == w[:, 1]) | (w[:, 1] == w[:, 2]) | (w[:, 2] == w[:, 0])
+    flat = ~mesh.face_normals.any(axis=1)  # zero cross product: collinear corners
+    bad = repeated | flat
+    if not bad.any():
+        return mesh
+    if bad.all():
+        raise InputError(f"{source}: all {len(bad)} faces are degenerate (zero area); "
+                         "nothing to simplify")
+    warn(f"{source}: dropped {int(bad.sum())} degenerate faces (repeated corner or zero area)")
+    return mesh.replace(faces=mesh.faces[~bad])

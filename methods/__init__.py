@@ -1,0 +1,1 @@
+"""Simplification methods: external baselines and the suite's own implementations."""

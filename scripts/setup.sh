@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Set up everything on a fresh Debian 12 machine with Python 3.11, then run the main job.
+#   bash scripts/setup.sh            install + run the main job on built-in models
+#   bash scripts/setup.sh --no-run   install only (what CI uses)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+# Headless OpenGL through EGL on Mesa's llvmpipe (no GPU, no display needed), plus venv.
+PKGS="libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgbm1 python3-venv"
+missing=$(dpkg-query -W -f='${db:Status-Abbrev} ${Package}\n' $PKGS 2>/dev/null | awk '$1!="ii"{print $2}'; \
+          for p in $PKGS; do dpkg-query -W "$p" >/dev/null 2>&1 || echo "$p"; done)
+if [ -n "$(echo $missing)" ]; then
+    SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    $SUDO apt-get update -qq
+    $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $PKGS
+fi
+
+PYTHON=${PYTHON:-$(command -v python3.11 || command -v python3)}
+[ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
+.venv/bin/python -m pip install -q --upgrade pip
+.venv/bin/python -m pip install -q -e '.[test]'
+
+if [ "${1:-}" != "--no-run" ]; then
+    # The main job: every baseline on the bunny at the paper's 1,332-face budget.
+    mkdir -p reports/quickstart
+    .venv/bin/bench list
+    for method in qslim fast-simplification; do
+        .venv/bin/bench simplify bunny "reports/quickstart/bunny-$method.obj" --method "$method" --faces 1332
+    done
+    .venv/bin/bench simplify torus reports/quickstart/torus-qslim-texture.obj --method qslim-texture --faces 512
+fi
