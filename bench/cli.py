@@ -12,11 +12,16 @@ import traceback
 import warnings
 
 from bench import __version__
+from bench.commands import baseline as baseline_cmd
+from bench.commands import check as check_cmd
 from bench.commands import list as list_cmd
+from bench.commands import report as report_cmd
+from bench.commands import run as run_cmd
 from bench.commands import simplify as simplify_cmd
 from bench.errors import BenchError
 
-COMMANDS = {"list": list_cmd, "simplify": simplify_cmd}
+COMMANDS = {"list": list_cmd, "simplify": simplify_cmd, "run": run_cmd, "report": report_cmd,
+            "baseline": baseline_cmd, "check": check_cmd}
 
 
 def build_parser() -> argparse.ArgumentParser:

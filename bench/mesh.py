@@ -17,6 +17,7 @@ the edge's vertices (a UV seam)::
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -181,6 +182,17 @@ class Mesh:
         """Length of the bounding-box diagonal."""
         lo, hi = self.bounding_box()
         return float(np.linalg.norm(hi - lo))
+
+    @cached_property
+    def content_hash(self) -> str:
+        """SHA-1 of positions, faces, UVs and texture: identifies a model's content in
+        result records and image caches."""
+        h = hashlib.sha1()
+        for array in (self.positions, self.faces, self.uv, self.texture):
+            if array is not None:
+                h.update(str(array.shape).encode())
+                h.update(np.ascontiguousarray(array).tobytes())
+        return h.hexdigest()
 
     def replace(self, **changes) -> Mesh:
         """A copy with some fields changed (derived topology is recomputed)."""

@@ -62,6 +62,7 @@ class Method:
     summary: ClassVar[str] = ""
     reference: ClassVar[str] = ""
     view_dependent: ClassVar[bool] = False
+    needs_uv: ClassVar[bool] = False  #: not applicable to meshes without texture coordinates
     requires: ClassVar[dict[str, str]] = {}  #: import name -> pip requirement
 
     @dataclass

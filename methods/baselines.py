@@ -107,6 +107,7 @@ class QSlimTexture(Method):
     reference = ("Garland & Heckbert, Simplifying surfaces with color and texture using "
                  "quadric error metrics, IEEE Visualization 1998")
     requires = {"pymeshlab": "pymeshlab>=2023.12"}
+    needs_uv = True
     Params = QSlimTextureParams
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:

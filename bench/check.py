@@ -1,0 +1,116 @@
+"""Regression gate: compare a run with a committed baseline, metric by metric.
+
+Each metric's direction comes from its registration (``higher_is_better``); counts
+without a direction are not checked. A metric is *worse* when it moved in the bad
+direction by more than ``tolerance × |baseline|`` (plus 1e-12, so 0 → 1 crack counts).
+
+Marks: ``worse``, ``better``, ``same``, ``newly failing`` (baseline ok, now failed),
+``fixed`` (baseline failed, now ok), ``not comparable`` (method or protocol version
+changed, so numbers cannot be compared), ``missing`` (in the baseline, not in the run),
+``new`` (in the run only). ``worse``, ``newly failing`` and ``missing`` fail the check.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from bench.errors import InputError
+
+__all__ = ["BASELINE_SCHEMA", "make_baseline", "compare", "FAILING_MARKS", "metric_directions"]
+
+BASELINE_SCHEMA = 1
+FAILING_MARKS = ("worse", "newly failing", "missing")
+
+
+def metric_directions() -> dict[str, bool]:
+    """Registered metric name -> higher_is_better, for metrics that have a direction."""
+    from bench.registry import registry
+
+    out = {}
+    for entry in registry("metric"):
+        if entry.available:
+            metric = entry.load()
+            if metric.higher_is_better is not None:
+                out[entry.name] = metric.higher_is_better
+    return out
+
+
+def _key(model: str, label: str, target: int, shading: str) -> str:
+    return f"{model} | {label} | {target} | {shading}"
+
+
+def make_baseline(records: list[dict]) -> dict:
+    """The comparable essence of a run: status, versions and directed metrics per job."""
+    directions = metric_directions()
+    entries = {}
+    for r in records:
+        job = r["job"]
+        key = _key(job["model"], job["label"], job["target_faces"], job["protocol"]["shading"])
+        metrics = r.get("metrics") or {}
+        entries[key] = {
+            "status": r["status"],
+            "method_version": (r.get("method") or {}).get("version"),
+            "protocol_version": job["protocol"]["version"],
+            "metrics": {k: metrics[k] for k in directions if metrics.get(k) is not None},
+        }
+    return {"schema": BASELINE_SCHEMA, "entries": dict(sorted(entries.items()))}
+
+
+def load_baseline(path: Path) -> dict:
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: cannot read baseline ({exc}); create one with "
+                         "bench baseline DIR --out FILE") from None
+    if data.get("schema") != BASELINE_SCHEMA:
+        raise InputError(f"{path}: baseline schema {data.get('schema')!r} is not "
+                         f"{BASELINE_SCHEMA}; regenerate it with bench baseline")
+    return data
+
+
+@dataclass
+class Row:
+    job: str
+    metric: str
+    baseline: float | str | None
+    current: float | str | None
+    mark: str
+
+
+def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]:
+    """Rows of (job, metric, baseline, current, mark) for every job and metric."""
+    directions = metric_directions()
+    rows = []
+    old_all, new_all = baseline["entries"], current["entries"]
+    for key in sorted(set(old_all) | set(new_all)):
+        old, new = old_all.get(key), new_all.get(key)
+        if new is None:
+            rows.append(Row(key, "-", old["status"], None, "missing"))
+            continue
+        if old is None:
+            rows.append(Row(key, "-", None, new["status"], "new"))
+            continue
+        if (old["method_version"], old["protocol_version"]) != (new["method_version"],
+                                                                 new["protocol_version"]):
+            rows.append(Row(key, "version", f"m{old['method_version']}/p{old['protocol_version']}",
+                            f"m{new['method_version']}/p{new['protocol_version']}",
+                            "not comparable"))
+            continue
+        if old["status"] == "ok" and new["status"] != "ok":
+            rows.append(Row(key, "status", old["status"], new["status"], "newly failing"))
+            continue
+        if old["status"] != "ok" and new["status"] == "ok":
+            rows.append(Row(key, "status", old["status"], new["status"], "fixed"))
+            continue
+        for metric, before in old["metrics"].items():
+            after = new["metrics"].get(metric)
+            if after is None or metric not in directions:
+                rows.append(Row(key, metric, before, after, "not comparable"))
+                continue
+            delta = (after - before) if directions[metric] else (before - after)  # >0 = better
+            slack = tolerance * abs(before) + 1e-12
+            mark = "worse" if delta < -slack else "better" if delta > slack else "same"
+            rows.append(Row(key, metric, before, after, mark))
+    return rows

@@ -1,0 +1,143 @@
+"""``bench run``: simplify every model with every method at every budget, evaluate each
+result under the protocol, and write records, results.csv and an HTML report to DIR."""
+
+from __future__ import annotations
+
+import os
+import sys
+from datetime import datetime
+from pathlib import Path
+
+from bench.errors import InputError
+from bench.method import resolve_target
+from bench.models import resolve_model
+from bench.registry import registry
+from bench.runner import execute, plan
+from bench.suites import get_suite
+
+DEFAULT_RATIOS = (0.02, 0.01)
+
+
+def add_parser(sub, name: str) -> None:
+    p = sub.add_parser(name, help="run the benchmark and write a report", description=__doc__)
+    p.add_argument("--models", help="comma-separated model names or mesh files (default: bunny,torus)")
+    p.add_argument("--methods", help="comma-separated method names; NAME[key=value,...] sets "
+                   "parameters (default: every available method)")
+    budget = p.add_mutually_exclusive_group()
+    budget.add_argument("--faces", help="comma-separated face budgets, e.g. 1332,654")
+    budget.add_argument("--ratios", help="comma-separated fractions of each model's faces "
+                        "(default: 0.02,0.01)")
+    p.add_argument("--shading", choices=["flat", "gouraud"], default=None,
+                   help="evaluation shading (default: flat, or the suite's)")
+    p.add_argument("--specular", action="store_true", help="add Blinn-Phong specular")
+    p.add_argument("--suite", help="a named experiment (sets models, methods and budgets)")
+    p.add_argument("--out", help="run directory (default: reports/run-YYYYmmdd-HHMMSS)")
+    p.add_argument("--jobs", "-j", type=int, default=os.cpu_count() or 1,
+                   help="worker processes (default: CPU count)")
+    p.add_argument("--resume", action="store_true", help="skip jobs whose record exists in DIR")
+    p.add_argument("--timeout", type=float, default=900.0, help="seconds per job (default 900)")
+    p.add_argument("--no-report", action="store_true", help="skip the HTML report")
+    p.set_defaults(run=run)
+
+
+def _split(text: str | None) -> list[str]:
+    return [t.strip() for t in (text or "").split(",") if t.strip()]
+
+
+def parse_variants(text: str | None) -> list[tuple[str, dict]]:
+    """'a,b[x=1,y=2]' -> [('a', {}), ('b', {'x': '1', 'y': '2'})] (brackets may hold commas)."""
+    variants, depth, current = [], 0, ""
+    for ch in (text or "") + ",":
+        if ch == "," and depth == 0:
+            if current.strip():
+                variants.append(current.strip())
+            current = ""
+            continue
+        depth += ch == "["
+        depth -= ch == "]"
+        current += ch
+    out = []
+    for v in variants:
+        name, _, rest = v.partition("[")
+        params = {}
+        for item in _split(rest.rstrip("]")):
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise InputError(f"--methods {v!r}: parameters are written NAME[key=value,...]")
+            params[key.strip()] = value.strip()
+        out.append((name.strip(), params))
+    return out
+
+
+def run(args) -> int:
+    from metrics.protocol import Protocol
+
+    suite = get_suite(args.suite) if args.suite else None
+    models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
+    methods = registry("method")
+    if args.methods:
+        variants = parse_variants(args.methods)
+    elif suite and suite.variants is not None:
+        variants = list(suite.variants)
+    else:
+        variants = [(e.name, {}) for e in methods if e.available and not e.load().view_dependent]
+    for name, params in variants:  # fail on typos before any work starts
+        cls = methods.load(name)
+        from bench.method import parse_params
+
+        parse_params(cls.Params, [f"{k}={v}" for k, v in params.items()])
+
+    meshes = {m: resolve_model(m) for m in models}
+    budgets = {}
+    for m, mesh in meshes.items():
+        if args.faces:
+            budgets[m] = [resolve_target(mesh.n_faces, faces=int(f)) for f in _split(args.faces)]
+        elif suite and m in suite.faces:
+            budgets[m] = list(suite.faces[m])
+        else:
+            ratios = [float(r) for r in _split(args.ratios)] or list(
+                suite.ratios if suite and suite.ratios else DEFAULT_RATIOS)
+            budgets[m] = [resolve_target(mesh.n_faces, ratio=r) for r in ratios]
+
+    protocol = Protocol(shading=args.shading or (suite.shading if suite else "flat"),
+                        specular=args.specular)
+    out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
+    jobs = plan(models, variants, budgets, protocol)
+    if args.resume:
+        jobs = [j for j in jobs if not (out / "records" / f"{j.key}.json").exists()]
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets) "
+          f"with {args.jobs} workers -> {out}", file=sys.stderr)
+    execute(jobs, out, workers=args.jobs, timeout=args.timeout)
+    return finish(out, build_report=not args.no_report)
+
+
+def finish(out: Path, build_report: bool = True) -> int:
+    """Write results.csv (and the report) from every record in ``out``; print a summary."""
+    from bench.results import load_records, records_table, write_table
+
+    records = load_records(out)
+    csv = write_table(out, records)
+    table = records_table(records)
+    cols = ["model", "method", "target_faces", "faces", "d_rms", "hausdorff_mean",
+            "seam_cracks", "seconds", "status"]
+    with_pd_options(lambda: print(table[cols].to_string(index=False)))
+    failed = table[table.status == "failed"]
+    print(f"bench: wrote {csv}", file=sys.stderr)
+    if build_report:
+        from bench.report import write_report
+
+        print(f"bench: wrote {write_report(out, records)}", file=sys.stderr)
+    if len(failed):
+        print(f"bench: {len(failed)} of {len(table)} jobs failed (see the report or "
+              f"{out}/records)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def with_pd_options(fn):
+    import pandas as pd
+
+    with pd.option_context("display.width", 200, "display.max_columns", 20,
+                           "display.float_format", "{:.4g}".format):
+        fn()

@@ -1,0 +1,103 @@
+"""Result records: one JSON file per (model, method variant, budget, protocol).
+
+Schema (``schema`` = :data:`SCHEMA_VERSION`)::
+
+    {"schema": 1, "status": "ok" | "failed" | "skipped", "error": str | null,
+     "job": {"model", "method", "params", "label", "target_faces", "protocol": {...}},
+     "model": {"name", "hash", "faces", "render_vertices", "welded_vertices"},
+     "method": {"name", "version", "view_dependent"},
+     "metrics": {...}, "per_view": {...}, "silhouette_histogram": [...],
+     "stats": {...}, "seconds": {...}, "stop_reason": str | null,
+     "environment": {"versions", "git_commit", "machine"}, "created": ISO time}
+
+Records are written atomically (temporary file + rename), so an interrupted run leaves
+only complete records and ``--resume`` can trust what it finds. A record of a newer
+schema is refused; older ones would be migrated by :func:`load_record`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+from bench.errors import InputError
+
+__all__ = ["SCHEMA_VERSION", "CSV_COLUMNS", "write_record", "load_record", "load_records",
+           "records_table", "write_table"]
+
+SCHEMA_VERSION = 1
+
+#: Columns of results.csv, in order (DESIGN "Results"; issue "runner").
+CSV_COLUMNS = ["model", "method", "target_faces", "faces", "d_rms", "ssim", "flip",
+               "hausdorff_mean", "hausdorff_max", "silhouette_mean", "boundary_edges",
+               "seam_cracks", "seconds", "tri_per_s", "peak_mb", "status"]
+
+
+def write_record(path: Path, record: dict) -> Path:
+    """Write ``record`` as JSON to ``path`` atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        json.dump(record, f, indent=1, sort_keys=True, default=_jsonable)
+    os.replace(tmp, path)
+    return path
+
+
+def _jsonable(value):
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def load_record(path: Path) -> dict:
+    try:
+        record = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: not a readable result record ({exc})") from None
+    schema = record.get("schema")
+    if not isinstance(schema, int) or schema > SCHEMA_VERSION:
+        raise InputError(f"{path}: result schema {schema!r} is newer than this bench "
+                         f"understands ({SCHEMA_VERSION}); upgrade bench")
+    return record
+
+
+def load_records(run_dir: Path) -> list[dict]:
+    """All records under ``run_dir/records``, sorted by model, method, budget."""
+    folder = Path(run_dir) / "records"
+    if not folder.is_dir():
+        raise InputError(f"{run_dir}: not a run directory (no records/ inside); "
+                         "create one with bench run --out DIR")
+    records = [load_record(p) for p in sorted(folder.glob("*.json"))]
+    return sorted(records, key=lambda r: (r["job"]["model"], r["job"]["label"],
+                                          -r["job"]["target_faces"]))
+
+
+def records_table(records: list[dict]):
+    """A pandas DataFrame with :data:`CSV_COLUMNS` (one row per record)."""
+    import pandas as pd
+
+    rows = []
+    for r in records:
+        m, job, stats = r.get("metrics") or {}, r["job"], r.get("stats") or {}
+        rows.append({
+            "model": job["model"], "method": job["label"], "target_faces": job["target_faces"],
+            "faces": m.get("faces"), "d_rms": m.get("d_rms"), "ssim": m.get("ssim"),
+            "flip": m.get("flip"), "hausdorff_mean": m.get("hausdorff_mean"),
+            "hausdorff_max": m.get("symmetric_max"), "silhouette_mean": m.get("silhouette_mean"),
+            "boundary_edges": m.get("boundary_edges"), "seam_cracks": m.get("seam_cracks"),
+            "seconds": stats.get("wall_seconds"), "tri_per_s": stats.get("tri_per_s"),
+            "peak_mb": stats.get("peak_mb"), "status": r["status"],
+        })
+    return pd.DataFrame(rows, columns=CSV_COLUMNS)
+
+
+def write_table(run_dir: Path, records: list[dict]) -> Path:
+    path = Path(run_dir) / "results.csv"
+    records_table(records).to_csv(path, index=False, float_format="%.6g")
+    return path
