@@ -85,7 +85,7 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         warn(f"{source}: triangulated polygon faces ({scan['ply_faces']} faces in the file "
              f"became {len(loaded.faces)} triangles)")
 
-    uv, texture, colors, normals = _attributes(loaded, source, scan)
+    uv, texture, colors, normals = _attributes(loaded, source, ext, scan)
     return build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
                       colors=colors, texture=texture, name=name or path.stem,
                       metadata={"source": source})
@@ -111,6 +111,14 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> list[Path]:
             written.append(_write_atomic(path.parent / fname, data))
         return written
     data = tm.export(file_type=ext[1:])
+    if isinstance(data, dict):  # .gltf: the JSON plus its buffers, renamed after OUT
+        gltf = data.pop("model.gltf")
+        written = []
+        for name, blob in data.items():
+            own = f"{path.stem}_{name}"
+            gltf = gltf.replace(f'"{name}"'.encode(), f'"{own}"'.encode())
+            written.append(_write_atomic(path.parent / own, blob))
+        return [_write_atomic(path, gltf)] + written
     return [_write_atomic(path, data if isinstance(data, bytes) else data.encode())]
 
 
@@ -123,13 +131,20 @@ def check_output_path(path: str | os.PathLike) -> Path:
                          f"supported: {', '.join(FORMATS)}")
     if not path.parent.is_dir():
         raise InputError(f"{path}: folder {path.parent} does not exist; create it first")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory; give a file name such as {path / 'out'}{ext}")
     return path
 
 
 # -- helpers ------------------------------------------------------------------------------
 
-def _attributes(tm, source: str, scan: dict):
-    """UV, texture, colours and (file) normals of a loaded trimesh object."""
+def _attributes(tm, source: str, ext: str, scan: dict):
+    """UV, texture, colours and (file) normals of a loaded trimesh object.
+
+    A texture image is kept only when the file really provides one: trimesh substitutes
+    a small placeholder image for textured meshes without a material, which must not
+    pass for the asset's texture.
+    """
     from trimesh.visual import ColorVisuals, TextureVisuals
 
     uv = texture = colors = normals = None
@@ -137,13 +152,15 @@ def _attributes(tm, source: str, scan: dict):
     if isinstance(visual, TextureVisuals):
         if visual.uv is not None and len(visual.uv) == len(tm.vertices):
             uv = np.asarray(visual.uv, dtype=np.float64)
-        image = _material_image(visual.material)
+        has_image_file = {".obj": bool(scan.get("texture_files")),
+                          ".gltf": True, ".glb": True}.get(ext, False)
+        image = _material_image(visual.material) if has_image_file else None
         if image is not None and uv is not None:
             texture = _image_array(image)
-        elif uv is not None and scan.get("texture_refs"):
+        if scan.get("texture_refs"):
             missing = ", ".join(scan["texture_refs"])
-            warn(f"{source}: texture image not found ({missing}); loading untextured "
-                 "(UVs kept)")
+            warn(f"{source}: texture image not found ({missing}); loading untextured"
+                 + (" (UVs kept)" if uv is not None else ""))
     elif isinstance(visual, ColorVisuals) and visual.kind == "vertex":
         colors = np.asarray(visual.vertex_colors, dtype=np.uint8)
     if "vertex_normals" in tm._cache.cache:  # present only when the file had normals
@@ -230,7 +247,7 @@ def _scan_obj(path: Path) -> dict:
     if max_index > n_v:
         raise InputError(f"{path}: line {max_line}: face index {max_index} is out of range "
                          f"(the file has {n_v} vertices); the file is corrupt or truncated")
-    refs = []
+    refs, found = [], []
     for lib in mtllibs:
         mtl = path.parent / lib.decode(errors="replace")
         if not mtl.exists():
@@ -240,9 +257,8 @@ def _scan_obj(path: Path) -> dict:
             parts = line.strip().split()
             if parts and parts[0].lower() in (b"map_kd", b"map_ka") and len(parts) > 1:
                 tex = parts[-1].decode(errors="replace")
-                if not (mtl.parent / tex).exists():
-                    refs.append(tex)
-    return {"polygons": polygons, "texture_refs": refs}
+                (found if (mtl.parent / tex).exists() else refs).append(tex)
+    return {"polygons": polygons, "texture_refs": refs, "texture_files": found}
 
 
 def _scan_ply(path: Path) -> dict:

@@ -1,0 +1,57 @@
+"""Shared fixtures and tiny hand-built meshes.
+
+Every hand-built mesh here is small enough that its welded topology can be counted on
+paper; the expected numbers in the tests are those hand counts, not values read back
+from the code.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+
+# -- hand-built meshes ------------------------------------------------------------------
+
+#: Two triangles sharing the edge (0,0,0)-(1,1,0) seen from +z (counter-clockwise)::
+#:
+#:     0-----1 3        render vertex 3 is a copy of 1 and 4 a copy of 2: the right
+#:     |    /  /|       triangle has its own UVs along the diagonal (a UV seam).
+#:     |  /  /  |
+#:     2 4-----5        left face (0,2,1), right face (3,4,5)
+#:
+#: positions: 0=(0,1) 1=(1,1) 2=(0,0) 3=(1,1) 4=(0,0) 5=(1,0), all at z=0.
+SEAM_POSITIONS = np.array([[0, 1, 0], [1, 1, 0], [0, 0, 0],
+                           [1, 1, 0], [0, 0, 0], [1, 0, 0]], dtype=np.float64)
+SEAM_FACES = np.array([[0, 2, 1], [3, 4, 5]], dtype=np.int32)
+SEAM_UV = np.array([[0.0, 1.0], [0.5, 1.0], [0.0, 0.0],
+                    [0.6, 1.0], [0.6, 0.0], [1.0, 0.0]])
+
+#: A closed tetrahedron, faces wound outward.
+TET_POSITIONS = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float64)
+TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int32)
+
+
+def write(path: Path, text: str) -> Path:
+    """Write dedented ``text`` to ``path`` and return the path."""
+    path.write_text(textwrap.dedent(text).lstrip("\n"))
+    return path
+
+
+@pytest.fixture(scope="session")
+def bunny_textured():
+    """The 10k-face textured bunny (loaded once; do not mutate its arrays)."""
+    from bench.models import BUNNY_TEXTURED
+
+    return BUNNY_TEXTURED.load()
+
+
+@pytest.fixture(scope="session")
+def small_torus():
+    """make_torus(64, 32): 4096 faces, closed, with UV seams and a texture."""
+    from bench.torus import make_torus
+
+    return make_torus(64, 32)
