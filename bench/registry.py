@@ -10,11 +10,17 @@ Entries are loaded lazily (importing a method must not import every backend). A
 plug-in object may declare ``requires = {"import_name": "pip requirement"}``; when one
 is missing the entry stays listed, marked unavailable, with the pip command that fixes
 it. Two distributions registering one name is an error naming both.
+
+For trying a plug-in without packaging it, ``BENCH_PLUGINS`` adds entries from the
+environment (worker processes inherit it)::
+
+    BENCH_PLUGINS="method:my-method=my_module:MyMethod,model:blob=my_module:BLOB"
 """
 
 from __future__ import annotations
 
 import difflib
+import os
 import importlib.util
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
@@ -104,10 +110,14 @@ class Registry:
         found = entry_points(group=GROUPS[kind]) if eps is None else eps
         for ep in found:
             self._add(ep)
+        if eps is None:
+            for ep in _environment_entry_points(kind):
+                self._add(ep, origin="$BENCH_PLUGINS")
 
-    def _add(self, ep: EntryPoint) -> None:
+    def _add(self, ep: EntryPoint, origin: str | None = None) -> None:
         dist = getattr(ep, "dist", None)
-        origin = f"{dist.name} {dist.version}" if dist is not None else "(not installed)"
+        if origin is None:
+            origin = f"{dist.name} {dist.version}" if dist is not None else "(not installed)"
         entry = Entry(self.kind, ep.name, ep.value, origin, ep)
         old = self._entries.get(ep.name)
         if old is not None:
@@ -142,6 +152,25 @@ class Registry:
     def load(self, name: str):
         """The object registered as ``name`` (imported on first use)."""
         return self.entry(name).load()
+
+
+def _environment_entry_points(kind: str) -> list[EntryPoint]:
+    """Entry points of ``kind`` listed in ``$BENCH_PLUGINS`` (see the module docstring)."""
+    out = []
+    for item in os.environ.get("BENCH_PLUGINS", "").split(","):
+        item = item.strip()
+        if not item:
+            continue
+        head, sep, value = item.partition("=")
+        item_kind, colon, name = head.partition(":")
+        if not (sep and colon and ":" in value):
+            raise RegistryError(f"BENCH_PLUGINS entry {item!r} is not KIND:NAME=module:attribute")
+        if item_kind not in GROUPS:
+            raise RegistryError(f"BENCH_PLUGINS entry {item!r}: kind must be one of "
+                                f"{', '.join(GROUPS)}")
+        if item_kind == kind:
+            out.append(EntryPoint(name.strip(), value.strip(), GROUPS[kind]))
+    return out
 
 
 _cache: dict[str, Registry] = {}

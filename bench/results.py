@@ -89,7 +89,7 @@ def records_table(records: list[dict]):
             "model": job["model"], "method": job["label"], "target_faces": job["target_faces"],
             "faces": m.get("faces"), "d_rms": m.get("d_rms"), "ssim": m.get("ssim"),
             "flip": m.get("flip"), "hausdorff_mean": m.get("hausdorff_mean"),
-            "hausdorff_max": m.get("symmetric_max"), "silhouette_mean": m.get("silhouette_mean"),
+            "hausdorff_max": m.get("hausdorff_max"), "silhouette_mean": m.get("silhouette_mean"),
             "boundary_edges": m.get("boundary_edges"), "seam_cracks": m.get("seam_cracks"),
             "seconds": stats.get("wall_seconds"), "tri_per_s": stats.get("tri_per_s"),
             "peak_mb": stats.get("peak_mb"), "status": r["status"],
