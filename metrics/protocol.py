@@ -145,7 +145,8 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
     hist, mean = silhouette.silhouette_histogram(simplified, eyes)
     seconds["silhouette"] = time.perf_counter() - t
 
-    metrics = {"d_rms": d, "ssim": s, "flip": f, **h, "silhouette_mean": mean}
+    metrics = {"d_rms": d, "ssim": s, "flip": f, **h, "hausdorff_max": h["symmetric_max"],
+               "silhouette_mean": mean}
     metrics.update(topology.counts(original, simplified))
     return Evaluation(metrics=metrics,
                       per_view={"d_rms": d_views.tolist(), "ssim": s_views.tolist(),

@@ -81,7 +81,7 @@ BOUNDARY_EDGES = Metric("boundary_edges", "edges", False,
                         "welded edges with one incident face (holes and cracks show here)",
                         _count("boundary_edges"))
 SEAM_CRACKS = Metric("seam_cracks", "edges", False,
-                     "boundary edges of the result away from the original's boundary",
+                     "boundary edges of the result that opened along the original's seams",
                      _count("seam_cracks"))
 NON_MANIFOLD_EDGES = Metric("non_manifold_edges", "edges", False,
                             "welded edges with more than two incident faces",
