@@ -55,8 +55,9 @@ def hausdorff(original: Mesh, simplified: Mesh, samples: int = HAUSDORFF_SAMPLES
         Both with at least one face; ``original`` must have a bounding box of nonzero
         diagonal (the unit of the results).
     samples : int
-        Edge samples and, separately, face samples drawn on each surface, in addition
-        to its vertices (see :func:`sample_surface`); at least 1.
+        Samples per direction, at least 1: every vertex of the sampled surface, and the
+        rest split evenly between its edges and faces (at least one of each; see
+        :func:`sample_surface`). MeshLab's ``samplenum`` likewise counts all kinds.
     seed : int
         Seed of the face samples; the same seed gives the same numbers.
 
@@ -87,9 +88,10 @@ def hausdorff(original: Mesh, simplified: Mesh, samples: int = HAUSDORFF_SAMPLES
 
     bound = _enclosing_diagonal(original, simplified)
     # Different seeds per direction keep the two sample sets independent.
-    forward = distance_to_surface(sample_surface(original, samples, seed), simplified, bound)
-    backward = distance_to_surface(sample_surface(simplified, samples, seed + 1), original,
-                                   bound)
+    forward = distance_to_surface(sample_surface(original, _per_kind(original, samples), seed),
+                                  simplified, bound)
+    backward = distance_to_surface(
+        sample_surface(simplified, _per_kind(simplified, samples), seed + 1), original, bound)
     result = {}
     for side, distances in (("forward", forward), ("backward", backward)):
         result[f"{side}_mean"] = float(distances.mean() / diagonal)
@@ -98,6 +100,11 @@ def hausdorff(original: Mesh, simplified: Mesh, samples: int = HAUSDORFF_SAMPLES
     result["symmetric_max"] = max(result["forward_max"], result["backward_max"])
     result["hausdorff_mean"] = 0.5 * (result["forward_mean"] + result["backward_mean"])
     return result
+
+
+def _per_kind(mesh: Mesh, samples: int) -> int:
+    """Edge samples (and, separately, face samples) that bring the total to ``samples``."""
+    return max(1, -(-(samples - mesh.welded.n_vertices) // 2))
 
 
 def sample_surface(mesh: Mesh, samples: int = HAUSDORFF_SAMPLES, seed: int = 0) -> np.ndarray:
