@@ -158,9 +158,10 @@ def _difference_uri(original: Path, simplified: Path) -> str | None:
 
     if not (original.exists() and simplified.exists()):
         return None
-    weights = np.array([0.299, 0.587, 0.114])
-    a = np.asarray(Image.open(original).convert("RGB"), float) @ weights
-    b = np.asarray(Image.open(simplified).convert("RGB"), float) @ weights
+    from metrics.image import luminance
+
+    a = luminance(np.asarray(Image.open(original).convert("RGB")))
+    b = luminance(np.asarray(Image.open(simplified).convert("RGB")))
     diff = (255 - np.clip(4 * np.abs(a - b), 0, 255)).astype(np.uint8)
     buf = io.BytesIO()
     Image.fromarray(diff).save(buf, format="PNG")

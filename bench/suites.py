@@ -6,7 +6,6 @@ face budgets, so an experiment is one reproducible command.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 __all__ = ["Suite", "SUITES", "get_suite"]
@@ -23,8 +22,6 @@ class Suite:
     #: model -> face budgets, taking precedence over ratios
     faces: dict = field(default_factory=dict)
     shading: str = "flat"
-    #: computes budgets from a model's face count when neither faces nor ratios fit
-    budget: Callable[[int], list[int]] | None = None
 
 
 SUITES = {

@@ -23,8 +23,8 @@ The rendering model is fixed and classic, not pyrender's stock physically based 
   does not alias. Otherwise albedo is white (1.0), so luminance spans the full range;
 * two-sided: nothing is culled and each side is lit with the normal facing the viewer.
   Open models (the original Stanford scan has holes in its base; pymeshlab's copy used
-  here is closed) and simplifications that open cracks show their back faces; culling them would paint background through the mesh
-  and lighting them with the outward normal would paint them black, both of which
+  here is closed) and simplifications that open cracks show their back faces; culling
+  them would paint background through the mesh and lighting them with the outward normal would paint them black, both of which
   exaggerate a defect differently for different methods;
 * anti-aliasing: pyrender's offscreen framebuffer is multisampled with 4 samples per
   pixel and resolved by a blit (this is pyrender's own path; no supersampling is
@@ -72,6 +72,8 @@ import pyrender as _pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
 from pyrender.shader_program import ShaderProgram, ShaderProgramCache  # noqa: E402
 
+from metrics.image import luminance  # noqa: E402,F401  (re-exported for callers of render)
+
 __all__ = [
     "BACKGROUND",
     "EvalRenderer",
@@ -89,7 +91,6 @@ SHADINGS = ("flat", "gouraud")
 #: Samples per pixel of pyrender's offscreen framebuffer (hard-coded in pyrender).
 PYRENDER_MSAA_SAMPLES = 4
 #: Luminance weights on 0..255 RGB (ITU-R BT.601, as L&T 2000 use for equation 2).
-LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114])
 
 
 @dataclass(frozen=True)
@@ -512,22 +513,3 @@ def render(mesh, cameras, shading: str = "flat", specular: bool = False, *,
     ndarray of shape (V, height, width, 3) uint8
     """
     return get_renderer(width, height, msaa).render(mesh, cameras, shading, specular)
-
-
-def luminance(images) -> np.ndarray:
-    """Luminance Y = 0.299 R + 0.587 G + 0.114 B on 0..255 (L&T 2000, equation 2).
-
-    Parameters
-    ----------
-    images : array_like of shape (..., 3)
-        RGB values on 0..255, e.g. (V, H, W, 3) uint8 from :func:`render`.
-
-    Returns
-    -------
-    ndarray of shape (...) float64
-        e.g. (V, H, W).
-    """
-    rgb = np.asarray(images)
-    if rgb.ndim < 1 or rgb.shape[-1] != 3:
-        raise ValueError(f"images must have RGB as the last axis, got shape {rgb.shape}")
-    return rgb.astype(np.float64) @ LUMA_WEIGHTS

@@ -9,7 +9,7 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.method import resolve_target
+from bench.method import parse_params, resolve_target
 from bench.models import resolve_model
 from bench.registry import registry
 from bench.runner import execute, plan
@@ -82,10 +82,7 @@ def run(args) -> int:
     else:
         variants = [(e.name, {}) for e in methods if e.available and not e.load().view_dependent]
     for name, params in variants:  # fail on typos before any work starts
-        cls = methods.load(name)
-        from bench.method import parse_params
-
-        parse_params(cls.Params, [f"{k}={v}" for k, v in params.items()])
+        parse_params(methods.load(name).Params, [f"{k}={v}" for k, v in params.items()])
 
     meshes = {m: resolve_model(m) for m in models}
     budgets = {}
