@@ -279,7 +279,7 @@ def test_luminance_weights():
     y = luminance(rgb[None])
     assert y.shape == (1, 2, 2) and y.dtype == np.float64
     np.testing.assert_allclose(y[0], [[0.299 * 255, 0.587 * 255], [0.114 * 255, 255.0]])
-    with pytest.raises(ValueError, match="RGB as the last axis"):
+    with pytest.raises(ValueError, match="RGB in the last axis"):
         luminance(np.zeros((2, 2, 4)))
 
 
