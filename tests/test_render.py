@@ -289,7 +289,7 @@ def test_importing_pyrender_first_without_egl_fails_clearly():
     code = ("import pyrender, numpy as np\n"
             "from metrics.render import luminance, render\n"
             "from metrics.views import cameras_for, dodecahedron_directions\n"
-            "luminance(np.zeros((1, 3)))  # importing still works\n"
+            "luminance(np.zeros((1, 3), np.uint8))  # importing still works\n"
             "points = np.eye(3)\n"
             "from bench.mesh import Mesh\n"
             "render(Mesh(points, [[0, 1, 2]]), cameras_for(points, dodecahedron_directions()))")
