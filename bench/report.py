@@ -24,10 +24,11 @@ _CSS = """
 body{font-family:system-ui,sans-serif;margin:2em;max-width:1400px;color:#222}
 h1{font-size:1.5em}h2{margin-top:2em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;font-size:.85em;margin:1em 0}
-td,th{border:1px solid #ddd;padding:3px 7px;text-align:right}
+td,th{border:1px solid #ddd;padding:3px 7px;text-align:right;white-space:nowrap}
 th{background:#f3f3f3}td:first-child,td:nth-child(2){text-align:left}
 .failed{background:#fde2e2}.skipped{color:#888}
-.sheet{display:flex;flex-wrap:wrap;gap:4px;margin:.5em 0 1.5em}
+.sheet{display:grid;grid-template-columns:repeat(4,164px);gap:4px;margin:.5em 0 1.5em}
+.scroll{overflow-x:auto}
 .sheet figure{margin:0;text-align:center;font-size:.75em}
 .sheet img{width:160px;height:160px;image-rendering:pixelated}
 .plots img{max-width:48%}
@@ -80,7 +81,7 @@ def _table_html(table) -> str:
         cells = "".join(f"<td>{_cell(v)}</td>" for v in r.values)
         rows.append(f"<tr{cls}>{cells}</tr>")
     head = "".join(f"<th>{html.escape(c)}</th>" for c in table.columns)
-    return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
+    return f"<div class='scroll'><table><tr>{head}</tr>{''.join(rows)}</table></div>"
 
 
 def _cell(value) -> str:
@@ -181,16 +182,16 @@ def _sheets(run_dir: Path, records: list[dict]) -> str:
         key = Job(job["model"], job["method"], job["target_faces"], job["params"], proto).key
         shading = proto.shading + ("-spec" if proto.specular else "")
         orig_dir = run_dir / "images" / f"original__{r['model']['hash'][:12]}__{shading}"
-        figs = []
+        rows = {"original": [], "result": [], "difference": []}  # one grid row each
         for v in SHEET_VIEWS:
             o, s = orig_dir / f"view{v:02d}.png", run_dir / "images" / key / f"view{v:02d}.png"
-            for caption, uri in ((f"original v{v}", _image_uri(o)),
-                                 (f"{r['metrics']['faces']} faces", _image_uri(s)),
-                                 (f"|ΔY|×4 (d={r['per_view']['d_rms'][v]:.1f})",
-                                  _difference_uri(o, s))):
-                if uri:
-                    figs.append(f"<figure><img src='{uri}' alt='{html.escape(caption)}'>"
-                                f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+            rows["original"].append((f"original, view {v}", _image_uri(o)))
+            rows["result"].append((f"{r['metrics']['faces']} faces", _image_uri(s)))
+            rows["difference"].append((f"|ΔY|×4, d_RMS {r['per_view']['d_rms'][v]:.1f}",
+                                       _difference_uri(o, s)))
+        figs = [f"<figure><img src='{uri}' alt='{html.escape(caption)}'>"
+                f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+                for row in rows.values() for caption, uri in row if uri]
         out.append(f"<h3>{html.escape(job['label'])} at {job['target_faces']} faces: "
                    f"d_RMS {r['metrics']['d_rms']:.3f}</h3><div class='sheet'>{''.join(figs)}</div>")
     return "".join(out)
