@@ -1,0 +1,749 @@
+"""The shared edge-collapse engine: welded topology, wedge attributes carried along,
+validity checks, a lazily re-evaluated priority queue, and a collapse log.
+
+Every method of the suite that removes edges runs on this engine. The pipeline, for a
+mesh and a face target::
+
+    state = build_state(mesh)           # welded positions/faces, wedge per corner, quadrics
+    run_collapses(state, policy, ...)   # numba: pop, (re-)cost, check, collapse, log
+    result = extract(state)             # render vertices again, the collapse log
+
+Policies are data, not callbacks (the Python layer never runs per collapse). A
+:class:`Policy` names a *placement* (where the surviving vertex goes) and a weighted sum
+of *cost terms*; the numba kernel dispatches on those codes. This is CGAL
+Surface_mesh_simplification's split into cost, placement and stop, with the stop being
+the face target.
+
+============  =========================================================================
+placement     where the kept vertex goes
+============  =========================================================================
+optimal       the quadric minimiser, falling back to the best of the endpoints and the
+              midpoint when the quadric is singular (Garland & Heckbert 1997)
+endpoints     half-edge collapse: both directions are tried, the cheaper is kept
+midpoint      the middle of the edge
+memoryless    Lindstrom & Turk 1998 constraints (methods.memoryless_math)
+============  =========================================================================
+
+Topology rules (each rejection is counted and reported):
+
+- *link condition*: the endpoints' common neighbours are exactly the apexes of the
+  edge's faces (1 on a boundary edge, 2 inside); otherwise the collapse pinches the
+  surface;
+- an interior edge between two boundary vertices is not collapsed (it would join two
+  boundary loops into a non-manifold vertex);
+- no collapse may create a face that duplicates an existing one (this is what stops a
+  tetrahedron at 4 faces);
+- *fold-over*: no surviving face may rotate its normal by more than
+  ``max_normal_rotation`` degrees (default 90°, i.e. flip) or lose its area;
+- non-manifold edges (more than two faces) are never collapsed;
+- with ``boundary_lock`` no boundary vertex moves or disappears.
+
+Wedges (render vertices) are carried along: the two faces removed by a collapse pair
+each wedge of the removed vertex with the wedge of the kept vertex on the same side of
+the edge; paired wedges merge, and the merged attribute (UV) is interpolated along the
+edge at the new position. A seam edge has different wedges on its two sides, so both
+pairs survive separately and the seam stays closed; it never opens, because the welded
+topology is never split.
+
+Lazy evaluation (Lindstrom & Turk 2000, §4.2.2): every vertex has a version stamp. A
+collapse bumps the stamps of the kept vertex and its neighbours and pushes fresh entries
+for the kept vertex's edges; other entries whose stamps changed are re-costed only when
+they reach the top of the queue, and pushed back. An entry popped with current stamps is
+taken at its stored cost (``verify=True`` checks that this equals a fresh evaluation).
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+from numba import njit
+
+from bench.mesh import Mesh
+
+__all__ = ["Policy", "EngineResult", "simplify_mesh", "PLACEMENTS", "STOP_REASONS",
+           "face_quadrics", "quadric_error"]
+
+PLACEMENTS = {"optimal": 0, "endpoints": 1, "midpoint": 2, "memoryless": 3}
+
+#: Rejection counters, in the order of the kernel's ``rejects`` array.
+REJECTIONS = ("link condition", "boundary pinch", "duplicate face", "fold-over",
+              "non-manifold edge", "boundary lock", "placement failed")
+
+STOP_REASONS = {0: "reached the target", 1: "no valid collapse remains"}
+_N_REJECTIONS = len(REJECTIONS)
+
+
+@dataclass(frozen=True)
+class Policy:
+    """How edges are costed and where the kept vertex goes.
+
+    Attributes
+    ----------
+    placement : str
+        A key of :data:`PLACEMENTS`.
+    quadric_weight : float
+        Weight of the Garland–Heckbert quadric error.
+    memoryless_weight : float
+        Weight of the Lindstrom–Turk cost (methods.memoryless_math).
+    canny_weight : float
+        Weight of the González 2007 texture-border penalty (needs ``borders``).
+    boundary_weight : float
+        Weight of the boundary-preserving planes added to the quadrics (Garland &
+        Heckbert 1997 §6.1); 1000 is QSlim's default.
+    max_normal_rotation : float
+        Degrees a surviving face's normal may turn in one collapse.
+    boundary_lock : bool
+        Keep boundary vertices fixed.
+    """
+
+    placement: str = "optimal"
+    quadric_weight: float = 1.0
+    memoryless_weight: float = 0.0
+    canny_weight: float = 0.0
+    boundary_weight: float = 1000.0
+    max_normal_rotation: float = 90.0
+    boundary_lock: bool = False
+
+    def __post_init__(self):
+        if self.placement not in PLACEMENTS:
+            raise ValueError(f"unknown placement {self.placement!r}; choose one of "
+                             f"{', '.join(PLACEMENTS)}")
+        if not 0 < self.max_normal_rotation <= 180:
+            raise ValueError("max_normal_rotation must be in (0, 180] degrees")
+
+
+@dataclass
+class EngineResult:
+    """What :func:`simplify_mesh` returns.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The simplified mesh, render vertices rebuilt from the surviving wedges.
+    stop_reason : str or None
+        None when the target was reached; otherwise why the engine stopped.
+    stats : dict
+        collapses, cost evaluations, rejections by rule, seconds.
+    log : dict of ndarray
+        The collapse sequence: ``removed`` (c,) welded vertex removed by collapse i,
+        ``kept`` (c,) the vertex it merged into, ``position`` (c, 3) the kept vertex's
+        new position, ``removed_faces`` (c, 2) faces deleted (-1 when only one),
+        ``changed_start`` (c + 1,) and ``changed_faces``: CSR lists of the faces whose
+        corner moved from ``removed`` to ``kept`` (each is one face removed and one
+        created, under the same id).
+    """
+
+    mesh: Mesh
+    stop_reason: str | None
+    stats: dict = field(default_factory=dict)
+    log: dict = field(default_factory=dict)
+
+
+# -- quadrics ---------------------------------------------------------------------------
+# A quadric is stored as 10 floats: the upper triangle of the symmetric 4x4 matrix
+# [[a2, ab, ac, ad], [., b2, bc, bd], [., ., c2, cd], [., ., ., d2]] of the plane
+# equation ax + by + cz + d = 0, so that error(p) = [p 1] Q [p 1]^T.
+
+@njit(cache=True)
+def _plane_quadric(q, n, d, weight):
+    a, b, c = n[0], n[1], n[2]
+    q[0] += weight * a * a
+    q[1] += weight * a * b
+    q[2] += weight * a * c
+    q[3] += weight * a * d
+    q[4] += weight * b * b
+    q[5] += weight * b * c
+    q[6] += weight * b * d
+    q[7] += weight * c * c
+    q[8] += weight * c * d
+    q[9] += weight * d * d
+
+
+@njit(cache=True)
+def quadric_error(q, p):
+    """[p 1] Q [p 1]^T for a 10-float quadric ``q`` and a point ``p`` (3,)."""
+    x, y, z = p[0], p[1], p[2]
+    return (q[0] * x * x + 2 * q[1] * x * y + 2 * q[2] * x * z + 2 * q[3] * x
+            + q[4] * y * y + 2 * q[5] * y * z + 2 * q[6] * y
+            + q[7] * z * z + 2 * q[8] * z + q[9])
+
+
+@njit(cache=True)
+def face_quadrics(P, F, alive, boundary_weight):
+    """Per-vertex quadrics (nv, 10): area-weighted face planes (Garland & Heckbert 1997
+    §5) plus, for every boundary edge, a plane through the edge perpendicular to its
+    face, weighted by ``boundary_weight`` × edge length² (§6.1)."""
+    nv = P.shape[0]
+    Q = np.zeros((nv, 10))
+    n = np.empty(3)
+    for f in range(F.shape[0]):
+        if not alive[f]:
+            continue
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        e1 = P[b] - P[a]
+        e2 = P[c] - P[a]
+        n[0] = e1[1] * e2[2] - e1[2] * e2[1]
+        n[1] = e1[2] * e2[0] - e1[0] * e2[2]
+        n[2] = e1[0] * e2[1] - e1[1] * e2[0]
+        length = math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
+        if length == 0.0:
+            continue
+        area = 0.5 * length
+        n /= length
+        d = -(n[0] * P[a, 0] + n[1] * P[a, 1] + n[2] * P[a, 2])
+        for k in range(3):
+            _plane_quadric(Q[F[f, k]], n, d, area)
+    return Q
+
+
+@njit(cache=True)
+def _add_boundary_quadrics(Q, P, F, alive, is_boundary_corner, weight):
+    """Add the §6.1 boundary planes; ``is_boundary_corner[f, k]`` marks the edge from
+    corner k to corner k+1 of face f as a boundary edge."""
+    m = np.empty(3)
+    for f in range(F.shape[0]):
+        if not alive[f]:
+            continue
+        a, b, c = P[F[f, 0]], P[F[f, 1]], P[F[f, 2]]
+        fn = np.cross(b - a, c - a)
+        fl = math.sqrt(fn[0] ** 2 + fn[1] ** 2 + fn[2] ** 2)
+        if fl == 0.0:
+            continue
+        fn /= fl
+        for k in range(3):
+            if not is_boundary_corner[f, k]:
+                continue
+            i, j = F[f, k], F[f, (k + 1) % 3]
+            e = P[j] - P[i]
+            el2 = e[0] ** 2 + e[1] ** 2 + e[2] ** 2
+            if el2 == 0.0:
+                continue
+            m[:] = np.cross(e, fn)
+            m /= math.sqrt(m[0] ** 2 + m[1] ** 2 + m[2] ** 2)
+            d = -(m[0] * P[i, 0] + m[1] * P[i, 1] + m[2] * P[i, 2])
+            _plane_quadric(Q[i], m, d, weight * el2)
+            _plane_quadric(Q[j], m, d, weight * el2)
+
+
+@njit(cache=True)
+def _optimal_point(q, pa, pb, out):
+    """Minimise the quadric: solve the 3x3 system; if it is ill-conditioned, take the
+    best of the endpoints and the midpoint. Writes ``out``; returns the error."""
+    a00, a01, a02, a11, a12, a22 = q[0], q[1], q[2], q[4], q[5], q[7]
+    b0, b1, b2 = -q[3], -q[6], -q[8]
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    scale = abs(a00) + abs(a11) + abs(a22)
+    if scale > 0.0 and abs(det) > 1e-10 * scale * scale * scale:
+        c11 = a00 * a22 - a02 * a02
+        c12 = a01 * a02 - a00 * a12
+        c22 = a00 * a11 - a01 * a01
+        out[0] = (c00 * b0 + c01 * b1 + c02 * b2) / det
+        out[1] = (c01 * b0 + c11 * b1 + c12 * b2) / det
+        out[2] = (c02 * b0 + c12 * b1 + c22 * b2) / det
+        return quadric_error(q, out)
+    best = quadric_error(q, pa)
+    out[:] = pa
+    e = quadric_error(q, pb)
+    if e < best:
+        best = e
+        out[:] = pb
+    mid = 0.5 * (pa + pb)
+    e = quadric_error(q, mid)
+    if e < best:
+        best = e
+        out[:] = mid
+    return best
+
+
+# -- topology helpers (numba) -------------------------------------------------------------
+# Vertex -> face incidence is a singly linked list of corners (3f + k) per vertex:
+# vhead[v] is the first corner, cnext[c] the next one. Corners of dead faces are unlinked
+# lazily by _compact.
+
+@njit(cache=True)
+def _compact(v, vhead, cnext, falive):
+    prev = -1
+    c = vhead[v]
+    while c != -1:
+        nxt = cnext[c]
+        if not falive[c // 3]:
+            if prev == -1:
+                vhead[v] = nxt
+            else:
+                cnext[prev] = nxt
+        else:
+            prev = c
+        c = nxt
+
+
+@njit(cache=True)
+def _neighbors(v, F, vhead, cnext, falive, mark, tick, out):
+    """Distinct neighbours of v into ``out``; returns their count. ``mark``/``tick``
+    deduplicate without clearing (tick[0] is bumped per call)."""
+    tick[0] += 1
+    t = tick[0]
+    mark[v] = t
+    n = 0
+    c = vhead[v]
+    while c != -1:
+        f = c // 3
+        if falive[f]:
+            for k in range(3):
+                w = F[f, k]
+                if mark[w] != t:
+                    mark[w] = t
+                    out[n] = w
+                    n += 1
+        c = cnext[c]
+    return n
+
+
+@njit(cache=True)
+def _edge_faces(u, v, F, vhead, cnext, falive, out):
+    """Alive faces containing both u and v, into ``out``; returns the count."""
+    n = 0
+    c = vhead[u]
+    while c != -1:
+        f = c // 3
+        if falive[f] and (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v):
+            if n < out.shape[0]:
+                out[n] = f
+            n += 1
+        c = cnext[c]
+    return n
+
+
+@njit(cache=True)
+def _is_boundary_vertex(v, F, vhead, cnext, falive, mark, tick, nbr, efaces):
+    n = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr)
+    for i in range(n):
+        w = nbr[i]
+        if w != v and _edge_faces(v, w, F, vhead, cnext, falive, efaces) == 1:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _third(F, f, a, b):
+    for k in range(3):
+        w = F[f, k]
+        if w != a and w != b:
+            return w
+    return -1
+
+
+@njit(cache=True)
+def _normal(pa, pb, pc):
+    return np.cross(pb - pa, pc - pa)
+
+
+# -- validity -------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _check(u, v, p, P, F, vhead, cnext, falive, mark, tick, nbr_u, nbr_v, efaces,
+           cos_limit, boundary_lock):
+    """0 if collapsing u into v at p is valid, else 1 + index into REJECTIONS."""
+    k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
+    if k > 2 or k == 0:
+        return 5  # non-manifold edge (k == 0 cannot happen for a live edge)
+    nu = _neighbors(u, F, vhead, cnext, falive, mark, tick, nbr_u)
+    nv = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr_v)  # mark now holds v's
+    t = tick[0]
+    common = 0
+    for i in range(nu):
+        w = nbr_u[i]
+        if w != v and w != u and mark[w] == t:
+            common += 1
+    if common != k:
+        return 1  # link condition
+    if boundary_lock or k == 2:
+        bu = _is_boundary_vertex(u, F, vhead, cnext, falive, mark, tick, nbr_u, efaces[2:])
+        bv = _is_boundary_vertex(v, F, vhead, cnext, falive, mark, tick, nbr_u, efaces[2:])
+        if boundary_lock and (bu or bv):
+            return 6
+        if k == 2 and bu and bv:
+            return 2  # boundary pinch
+    # Duplicate faces: a face of u (not on the edge) must not coincide with one of v
+    # once u is renamed v. Also the fold-over test for every face that moves.
+    for side in range(2):
+        x = u if side == 0 else v
+        y = v if side == 0 else u
+        c = vhead[x]
+        while c != -1:
+            f = c // 3
+            if falive[f] and not (F[f, 0] == y or F[f, 1] == y or F[f, 2] == y):
+                a = -1
+                b = -1
+                for j in range(3):
+                    if F[f, j] != x:
+                        if a == -1:
+                            a = F[f, j]
+                        else:
+                            b = F[f, j]
+                if side == 0:
+                    c2 = vhead[v]
+                    while c2 != -1:
+                        g = c2 // 3
+                        if falive[g] and not (F[g, 0] == u or F[g, 1] == u or F[g, 2] == u):
+                            if ((F[g, 0] == a or F[g, 1] == a or F[g, 2] == a)
+                                    and (F[g, 0] == b or F[g, 1] == b or F[g, 2] == b)):
+                                return 3  # duplicate face
+                        c2 = cnext[c2]
+                # fold-over: the face with x moved to p
+                i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
+                before = _normal(P[i0], P[i1], P[i2])
+                q0 = p if i0 == x else P[i0]
+                q1 = p if i1 == x else P[i1]
+                q2 = p if i2 == x else P[i2]
+                after = _normal(q0, q1, q2)
+                lb = math.sqrt(before[0] ** 2 + before[1] ** 2 + before[2] ** 2)
+                la = math.sqrt(after[0] ** 2 + after[1] ** 2 + after[2] ** 2)
+                if la <= 1e-12 * lb or la == 0.0:
+                    return 4
+                if lb > 0.0:
+                    cosang = (before[0] * after[0] + before[1] * after[1]
+                              + before[2] * after[2]) / (la * lb)
+                    if cosang < cos_limit:
+                        return 4
+            c = cnext[c]
+    return 0
+
+
+# -- cost and placement -------------------------------------------------------------------
+
+@njit(cache=True)
+def _evaluate(u, v, P, Q, placement, w_quadric, qsum, out_p):
+    """Cost of collapsing edge (u, v) and where the kept vertex goes.
+
+    Returns (cost, keep) where keep is the vertex that survives (the other one is
+    removed); the new position is written to ``out_p``.
+    """
+    for i in range(10):
+        qsum[i] = Q[u, i] + Q[v, i]
+    if placement == 1:  # endpoints: half-edge collapse, cheaper direction
+        eu = quadric_error(qsum, P[u])  # keep u where it is
+        ev = quadric_error(qsum, P[v])
+        if eu < ev:
+            out_p[:] = P[u]
+            return w_quadric * eu, u
+        out_p[:] = P[v]
+        return w_quadric * ev, v
+    if placement == 2:
+        out_p[:] = 0.5 * (P[u] + P[v])
+        return w_quadric * quadric_error(qsum, out_p), v
+    err = _optimal_point(qsum, P[u], P[v], out_p)
+    return w_quadric * err, v
+
+
+# -- one collapse -------------------------------------------------------------------------
+
+@njit(cache=True)
+def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv,
+              has_uv, efaces, wmap_from, wmap_to, log_changed, n_changed):
+    """Merge u into v at p. Returns (faces removed, changed count) and fills efaces with
+    the removed faces."""
+    k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
+    # Pair the wedges of u and v across each removed face (same side of the edge).
+    npairs = 0
+    for i in range(k):
+        f = efaces[i]
+        wu = -1
+        wv = -1
+        for j in range(3):
+            if F[f, j] == u:
+                wu = FW[f, j]
+            elif F[f, j] == v:
+                wv = FW[f, j]
+        if wu != wv:
+            wmap_from[npairs] = wu
+            wmap_to[npairs] = wv
+            npairs += 1
+    # Interpolation parameter of p along the edge, for merged attributes.
+    e = P[v] - P[u]
+    el2 = e[0] ** 2 + e[1] ** 2 + e[2] ** 2
+    t = 0.5
+    if el2 > 0.0:
+        t = ((p[0] - P[u, 0]) * e[0] + (p[1] - P[u, 1]) * e[1] + (p[2] - P[u, 2]) * e[2]) / el2
+        t = min(1.0, max(0.0, t))
+    if has_uv:
+        for i in range(npairs):
+            a, b = wmap_from[i], wmap_to[i]
+            uv[b, 0] = (1.0 - t) * uv[a, 0] + t * uv[b, 0]
+            uv[b, 1] = (1.0 - t) * uv[a, 1] + t * uv[b, 1]
+    for i in range(k):
+        falive[efaces[i]] = False
+    # Rename u to v in its surviving faces; remap paired wedges; move u's other wedges.
+    c = vhead[u]
+    last = -1
+    while c != -1:
+        f = c // 3
+        if falive[f]:
+            j = c % 3
+            F[f, j] = v
+            w = FW[f, j]
+            for i in range(npairs):
+                if wmap_from[i] == w:
+                    w = wmap_to[i]
+                    break
+            FW[f, j] = w
+            wedge_vertex[w] = v
+            log_changed[n_changed] = f
+            n_changed += 1
+        last = c
+        c = cnext[c]
+    if last != -1:  # append u's corner list to v's
+        cnext[last] = vhead[v]
+        vhead[v] = vhead[u]
+    vhead[u] = -1
+    valive[u] = False
+    P[v] = p
+    for i in range(10):
+        Q[v, i] += Q[u, i]
+    _compact(v, vhead, cnext, falive)
+    return k, n_changed
+
+
+@njit(cache=True)
+def _push(heap, cost, a, b, sa, sb):
+    heapq.heappush(heap, (float(cost), np.int64(a), np.int64(b), np.int64(sa), np.int64(sb)))
+
+
+# -- the loop -----------------------------------------------------------------------------
+
+@njit(cache=True)
+def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, target,
+         placement, w_quadric, cos_limit, boundary_lock, verify, max_collapses):
+    nv = P.shape[0]
+    mark = np.zeros(nv, np.int64)
+    tick = np.zeros(1, np.int64)
+    stamp = np.zeros(nv, np.int64)
+    nbr_u = np.empty(nv, np.int64)
+    nbr_v = np.empty_like(nbr_u)
+    efaces = np.empty(8, np.int64)
+    wmap_from = np.empty(8, np.int64)
+    wmap_to = np.empty(8, np.int64)
+    qsum = np.empty(10)
+    p = np.empty(3)
+    rejects = np.zeros(_N_REJECTIONS, np.int64)
+    log_removed = np.empty(max_collapses, np.int32)
+    log_kept = np.empty(max_collapses, np.int32)
+    log_pos = np.empty((max_collapses, 3))
+    log_faces = np.full((max_collapses, 2), -1, np.int64)
+    log_start = np.zeros(max_collapses + 1, np.int64)
+    log_changed = np.empty(max(16, 3 * F.shape[0]), np.int64)
+    n_changed = 0
+    evaluations = 0
+    mismatches = 0
+    # blocked edges: rejected candidates, re-queued when an endpoint's stamp changes
+    blk_other = np.empty(16, np.int64)
+    blk_next = np.empty(16, np.int64)
+    blk_head = np.full(nv, -1, np.int64)
+    n_blk = 0
+
+    heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0))]
+    heap.pop()
+    for f in range(F.shape[0]):
+        if not falive[f]:
+            continue
+        for j in range(3):
+            a, b = F[f, j], F[f, (j + 1) % 3]
+            if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
+                cost, keep = _evaluate(a, b, P, Q, placement, w_quadric, qsum, p)
+                evaluations += 1
+                _push(heap, cost, a, b, 0, 0)
+
+    faces = 0
+    for f in range(F.shape[0]):
+        if falive[f]:
+            faces += 1
+    n = 0
+    stopped = 1
+    while len(heap) > 0:
+        if faces <= target:
+            stopped = 0
+            break
+        cost, a, b, sa, sb = heapq.heappop(heap)
+        if not valive[a] or not valive[b]:
+            continue
+        if sa != stamp[a] or sb != stamp[b]:  # stale: re-cost lazily and push back
+            if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
+                continue
+            cost, keep = _evaluate(a, b, P, Q, placement, w_quadric, qsum, p)
+            evaluations += 1
+            _push(heap, cost, a, b, stamp[a], stamp[b])
+            continue
+        if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
+            continue
+        fresh, keep = _evaluate(a, b, P, Q, placement, w_quadric, qsum, p)
+        evaluations += 1
+        if verify and abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
+            mismatches += 1
+        u = a if keep == b else b
+        v = keep
+        code = _check(u, v, p, P, F, vhead, cnext, falive, mark, tick, nbr_u, nbr_v, efaces,
+                      cos_limit, boundary_lock)
+        if code != 0:
+            rejects[code - 1] += 1
+            for side in range(2):  # remember it at both ends
+                x = a if side == 0 else b
+                if n_blk == blk_other.shape[0]:
+                    blk_other = np.concatenate((blk_other, np.empty_like(blk_other)))
+                    blk_next = np.concatenate((blk_next, np.empty_like(blk_next)))
+                blk_other[n_blk] = b if side == 0 else a
+                blk_next[n_blk] = blk_head[x]
+                blk_head[x] = n_blk
+                n_blk += 1
+            continue
+        if n >= max_collapses:
+            break
+        if n_changed + 4096 > log_changed.shape[0]:  # a vertex has far fewer faces
+            log_changed = np.concatenate((log_changed, np.empty_like(log_changed)))
+        log_removed[n] = u
+        log_kept[n] = v
+        log_pos[n] = p
+        removed, n_changed = _collapse(u, v, p.copy(), P, Q, F, FW, falive, vhead, cnext,
+                                       valive, wedge_vertex, uv, has_uv, efaces, wmap_from,
+                                       wmap_to, log_changed, n_changed)
+        for i in range(min(removed, 2)):
+            log_faces[n, i] = efaces[i]
+        n += 1
+        log_start[n] = n_changed
+        faces -= removed
+        # Stamp v and its neighbours (their costs may have changed), requeue their
+        # blocked edges, and push fresh entries for v's edges.
+        m = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr_v)
+        for i in range(m):
+            w = nbr_v[i]
+            stamp[w] += 1
+            j = blk_head[w]
+            while j != -1:
+                o = blk_other[j]
+                if valive[o]:
+                    _push(heap, cost, w, o, -1, -1)
+                j = blk_next[j]
+            blk_head[w] = -1
+        for i in range(m):
+            w = nbr_v[i]
+            if w == v:
+                continue
+            c2, k2 = _evaluate(v, w, P, Q, placement, w_quadric, qsum, p)
+            evaluations += 1
+            _push(heap, c2, v, w, stamp[v], stamp[w])
+    if faces <= target:
+        stopped = 0
+    return (stopped, n, evaluations, mismatches, rejects, log_removed[:n], log_kept[:n],
+            log_pos[:n], log_faces[:n], log_start[:n + 1], log_changed[:n_changed])
+
+
+
+# -- Python entry point -------------------------------------------------------------------
+
+def _corner_lists(F: np.ndarray, nv: int):
+    """vhead (nv,) and cnext (3m,) linking each vertex's corners, in corner order."""
+    corners = F.reshape(-1).astype(np.int64)
+    order = np.argsort(corners, kind="stable")
+    vhead = np.full(nv, -1, np.int64)
+    cnext = np.full(len(corners), -1, np.int64)
+    sorted_v = corners[order]
+    same = sorted_v[1:] == sorted_v[:-1]
+    cnext[order[:-1][same]] = order[1:][same]
+    first = np.ones(len(order), bool)
+    first[1:] = ~same
+    vhead[sorted_v[first]] = order[first]
+    return vhead, cnext
+
+
+def _boundary_corners(mesh: Mesh) -> np.ndarray:
+    """(m, 3) bool: corner k of face f starts a boundary edge (k -> k+1)."""
+    w = mesh.welded
+    he = np.sort(w.faces[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
+    boundary = {tuple(e) for e in w.edges[w.boundary].tolist()}
+    if not boundary:
+        return np.zeros(w.faces.shape, bool)
+    keys = he[:, 0].astype(np.int64) * (w.n_vertices + 1) + he[:, 1]
+    bkeys = np.array([a * (w.n_vertices + 1) + b for a, b in boundary], np.int64)
+    return np.isin(keys, bkeys).reshape(-1, 3)
+
+
+def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
+                  verify: bool = False) -> EngineResult:
+    """Collapse edges of ``mesh`` until it has at most ``target_faces`` faces (or no
+    valid collapse remains) under ``policy``.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    target_faces : int
+        At least 1. The result has ``target_faces`` or one fewer faces (a collapse
+        removes two faces, one on a boundary) unless the engine stops early.
+    policy : Policy
+    verify : bool
+        Check that every collapse taken at its queued cost has that cost when
+        re-evaluated (the lazy-queue invariant); counts go to ``stats``.
+    """
+    import time
+
+    if target_faces < 1:
+        raise ValueError(f"target_faces must be at least 1, got {target_faces}")
+    start = time.perf_counter()
+    w = mesh.welded
+    P = w.positions.astype(np.float64).copy()
+    F = w.faces.astype(np.int64).copy()
+    FW = mesh.faces.astype(np.int64).copy()
+    falive = np.ones(len(F), bool)
+    nv = len(P)
+    vhead, cnext = _corner_lists(F, nv)
+    valive = np.zeros(nv, bool)
+    valive[np.unique(F)] = True
+    wedge_vertex = w.vertex_of.astype(np.int64).copy()
+    has_uv = mesh.uv is not None
+    uv = mesh.uv.copy() if has_uv else np.zeros((1, 2))
+
+    Q = face_quadrics(P, F, falive, 0.0)
+    if policy.boundary_weight > 0:
+        _add_boundary_quadrics(Q, P, F, falive, _boundary_corners(mesh), policy.boundary_weight)
+
+    cos_limit = math.cos(math.radians(policy.max_normal_rotation))
+    out = _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv,
+               int(target_faces), PLACEMENTS[policy.placement], float(policy.quadric_weight),
+               cos_limit, bool(policy.boundary_lock), bool(verify), max(1, nv))
+    (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
+     log_faces, log_start, log_changed) = out
+
+    simplified = _extract(mesh, P, FW[falive], wedge_vertex, uv if has_uv else None)
+    faces = int(falive.sum())
+    reason = None
+    if stopped:
+        counts = ", ".join(f"{name} {int(c)}" for name, c in zip(REJECTIONS, rejects) if c)
+        reason = (f"no valid collapse remains at {faces} faces (target {target_faces}); "
+                  f"candidates rejected: {counts or 'none'}")
+    seconds = time.perf_counter() - start
+    stats = {"collapses": int(n), "cost_evaluations": int(evaluations),
+             "rejections": {name: int(c) for name, c in zip(REJECTIONS, rejects)},
+             "engine_seconds": seconds,
+             "collapses_per_second": n / seconds if seconds > 0 else None}
+    if verify:
+        stats["lazy_mismatches"] = int(mismatches)
+    log = {"removed": log_removed, "kept": log_kept, "position": log_pos,
+           "removed_faces": log_faces, "changed_start": log_start,
+           "changed_faces": log_changed}
+    return EngineResult(simplified, reason, stats, log)
+
+
+def _extract(mesh: Mesh, P, faces_wedges, wedge_vertex, uv) -> Mesh:
+    """Render vertices from the surviving wedges: each keeps its attributes and takes
+    the position of the welded vertex it now belongs to."""
+    used, faces = np.unique(faces_wedges.reshape(-1), return_inverse=True)
+    positions = P[wedge_vertex[used]]
+    return mesh.replace(
+        positions=positions, faces=faces.reshape(-1, 3).astype(np.int32),
+        uv=None if uv is None else uv[used],
+        colors=None if mesh.colors is None else mesh.colors[used],
+        normals=None)
