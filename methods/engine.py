@@ -63,18 +63,26 @@ import numpy as np
 from numba import njit
 
 from bench.mesh import Mesh
+from methods.memoryless_math import lt_cost, lt_placement
 
 __all__ = ["Policy", "EngineResult", "simplify_mesh", "PLACEMENTS", "STOP_REASONS",
-           "face_quadrics", "quadric_error"]
+           "face_quadrics", "initial_quadrics", "quadric_error"]
 
 PLACEMENTS = {"optimal": 0, "endpoints": 1, "midpoint": 2, "memoryless": 3}
 
 #: Rejection counters, in the order of the kernel's ``rejects`` array.
 REJECTIONS = ("link condition", "boundary pinch", "duplicate face", "fold-over",
-              "non-manifold edge", "boundary lock", "placement failed")
+              "non-manifold edge", "boundary lock", "seam rule")
 
 STOP_REASONS = {0: "reached the target", 1: "no valid collapse remains"}
 _N_REJECTIONS = len(REJECTIONS)
+
+# Lindstrom–Turk constants: CGAL's defaults (alpha 1°, volume and boundary weights 0.5,
+# no shape term), which follow the 1998/1999 papers.
+LT_ALPHA_DEG = 1.0
+LT_VOLUME_WEIGHT = 0.5
+LT_BOUNDARY_WEIGHT = 0.5
+LT_SHAPE_WEIGHT = 0.0
 
 
 @dataclass(frozen=True)
@@ -98,6 +106,9 @@ class Policy:
         Degrees a surviving face's normal may turn in one collapse.
     boundary_lock : bool
         Keep boundary vertices fixed.
+    seam_rule : bool
+        Seam vertices move only along their seam (see ``_evaluate``), so every UV chart
+        survives; without it seams stay closed but may drift across charts.
     """
 
     placement: str = "optimal"
@@ -107,6 +118,7 @@ class Policy:
     boundary_weight: float = 1000.0
     max_normal_rotation: float = 90.0
     boundary_lock: bool = False
+    seam_rule: bool = True
 
     def __post_init__(self):
         if self.placement not in PLACEMENTS:
@@ -141,6 +153,10 @@ class EngineResult:
     stop_reason: str | None
     stats: dict = field(default_factory=dict)
     log: dict = field(default_factory=dict)
+    #: final per-vertex quadrics (nv, 10) and which welded vertices survive (nv,), for
+    #: inspection and tests
+    quadrics: np.ndarray | None = None
+    vertex_alive: np.ndarray | None = None
 
 
 # -- quadrics ---------------------------------------------------------------------------
@@ -173,10 +189,9 @@ def quadric_error(q, p):
 
 
 @njit(cache=True)
-def face_quadrics(P, F, alive, boundary_weight):
-    """Per-vertex quadrics (nv, 10): area-weighted face planes (Garland & Heckbert 1997
-    §5) plus, for every boundary edge, a plane through the edge perpendicular to its
-    face, weighted by ``boundary_weight`` × edge length² (§6.1)."""
+def face_quadrics(P, F, alive):
+    """Per-vertex quadrics (nv, 10) of area-weighted face planes (Garland & Heckbert
+    1997 §5); boundary planes are added by _add_boundary_quadrics."""
     nv = P.shape[0]
     Q = np.zeros((nv, 10))
     n = np.empty(3)
@@ -419,27 +434,202 @@ def _check(u, v, p, P, F, vhead, cnext, falive, mark, tick, nbr_u, nbr_v, efaces
 # -- cost and placement -------------------------------------------------------------------
 
 @njit(cache=True)
-def _evaluate(u, v, P, Q, placement, w_quadric, qsum, out_p):
-    """Cost of collapsing edge (u, v) and where the kept vertex goes.
+def _is_seam_vertex(v, FW, vhead, cnext, falive):
+    """True when the faces around v use more than one wedge for it."""
+    first = -1
+    c = vhead[v]
+    while c != -1:
+        if falive[c // 3]:
+            w = FW[c // 3, c % 3]
+            if first == -1:
+                first = w
+            elif w != first:
+                return True
+        c = cnext[c]
+    return False
 
-    Returns (cost, keep) where keep is the vertex that survives (the other one is
-    removed); the new position is written to ``out_p``.
+
+@njit(cache=True)
+def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
+    """True when the edge's two faces use different wedges for one of its ends."""
+    if _edge_faces(u, v, F, vhead, cnext, falive, efaces) != 2:
+        return False
+    f, g = efaces[0], efaces[1]
+    for x in (u, v):
+        wf = -1
+        wg = -1
+        for j in range(3):
+            if F[f, j] == x:
+                wf = FW[f, j]
+            if F[g, j] == x:
+                wg = FW[g, j]
+        if wf != wg:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _gather_profile(a, b, P, F, vhead, cnext, falive, efaces, mark, tick,
+                    tri_a, tri_b, tri_c, bnd_a, bnd_b, link):
+    """The Lindstrom–Turk profile of edge (a, b): triangles around either end, their
+    boundary edges (oriented as in the triangle) and the link vertices. Returns
+    (n_tris, n_bnd, n_link), or (-1, 0, 0) when the workspace is too small."""
+    cap = tri_a.shape[0]
+    n_tris = 0
+    n_bnd = 0
+    n_link = 0
+    tick[0] += 1
+    t = tick[0]
+    mark[a] = t
+    mark[b] = t
+    for side in range(2):
+        x = a if side == 0 else b
+        y = b if side == 0 else a
+        c = vhead[x]
+        while c != -1:
+            f = c // 3
+            if falive[f]:
+                has_y = F[f, 0] == y or F[f, 1] == y or F[f, 2] == y
+                if side == 0 or not has_y:  # faces of the edge are counted once
+                    if n_tris == cap:
+                        return -1, 0, 0
+                    tri_a[n_tris] = P[F[f, 0]]
+                    tri_b[n_tris] = P[F[f, 1]]
+                    tri_c[n_tris] = P[F[f, 2]]
+                    n_tris += 1
+                    for j in range(3):
+                        i0, i1 = F[f, j], F[f, (j + 1) % 3]
+                        if (i0 == a or i0 == b or i1 == a or i1 == b) and \
+                                _edge_faces(i0, i1, F, vhead, cnext, falive, efaces) == 1:
+                            if n_bnd == cap:
+                                return -1, 0, 0
+                            bnd_a[n_bnd] = P[i0]
+                            bnd_b[n_bnd] = P[i1]
+                            n_bnd += 1
+                    for j in range(3):
+                        w = F[f, j]
+                        if mark[w] != t:
+                            mark[w] = t
+                            if n_link == cap:
+                                return -1, 0, 0
+                            link[n_link] = P[w]
+                            n_link += 1
+            c = cnext[c]
+    return n_tris, n_bnd, n_link
+
+
+@njit(cache=True)
+def _is_seam_vertex(v, FW, vhead, cnext, falive):
+    """True when the faces around v use more than one wedge for it."""
+    first = -1
+    c = vhead[v]
+    while c != -1:
+        if falive[c // 3]:
+            w = FW[c // 3, c % 3]
+            if first == -1:
+                first = w
+            elif w != first:
+                return True
+        c = cnext[c]
+    return False
+
+
+@njit(cache=True)
+def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
+    """True when the edge's two faces use different wedges for one of its ends."""
+    if _edge_faces(u, v, F, vhead, cnext, falive, efaces) != 2:
+        return False
+    f, g = efaces[0], efaces[1]
+    for x in (u, v):
+        wf = -1
+        wg = -1
+        for j in range(3):
+            if F[f, j] == x:
+                wf = FW[f, j]
+            if F[g, j] == x:
+                wg = FW[g, j]
+        if wf != wg:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark, tick, ws, placement,
+              weights, seam_rule, qsum, out_p):
+    """Cost of collapsing edge (a, b) and where the kept vertex goes.
+
+    ``weights`` = (quadric, memoryless) cost-term weights; ``ws`` = the Lindstrom–Turk
+    workspace (tri_a, tri_b, tri_c, bnd_a, bnd_b, link). Returns (cost, keep): keep is
+    the vertex that survives (the other is removed), and the new position is written to
+    ``out_p``. cost is +inf when the seam rule forbids the collapse.
+
+    Seam rule (``seam_rule``), as vertex kinds: a seam vertex (two or more wedges) may
+    only move along its seam. So an edge between a seam vertex and an ordinary one is a
+    half-edge collapse onto the seam vertex, which stays where it is; an edge between two
+    seam vertices must itself be a seam edge (else it would cut a UV chart in two), and
+    may then be placed freely.
     """
+    w_q, w_lt = weights[0], weights[1]
     for i in range(10):
-        qsum[i] = Q[u, i] + Q[v, i]
-    if placement == 1:  # endpoints: half-edge collapse, cheaper direction
-        eu = quadric_error(qsum, P[u])  # keep u where it is
-        ev = quadric_error(qsum, P[v])
-        if eu < ev:
-            out_p[:] = P[u]
-            return w_quadric * eu, u
-        out_p[:] = P[v]
-        return w_quadric * ev, v
-    if placement == 2:
-        out_p[:] = 0.5 * (P[u] + P[v])
-        return w_quadric * quadric_error(qsum, out_p), v
-    err = _optimal_point(qsum, P[u], P[v], out_p)
-    return w_quadric * err, v
+        qsum[i] = Q[a, i] + Q[b, i]
+    forced = -1  # the vertex that must be kept, at its own position
+    if seam_rule:
+        sa = _is_seam_vertex(a, FW, vhead, cnext, falive)
+        sb = _is_seam_vertex(b, FW, vhead, cnext, falive)
+        if sa and sb:
+            if not _is_seam_edge(a, b, F, FW, vhead, cnext, falive, efaces):
+                out_p[:] = P[b]
+                return np.inf, b
+        elif sa:
+            forced = a
+        elif sb:
+            forced = b
+    tri_a, tri_b, tri_c, bnd_a, bnd_b, link = ws
+    n_tris = n_bnd = n_link = 0
+    e = P[a] - P[b]
+    l2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+    if w_lt != 0.0 or placement == 3:
+        n_tris, n_bnd, n_link = _gather_profile(a, b, P, F, vhead, cnext, falive, efaces,
+                                                mark, tick, tri_a, tri_b, tri_c, bnd_a,
+                                                bnd_b, link)
+    keep = b
+    if forced != -1:
+        keep = forced
+        out_p[:] = P[forced]
+    elif placement == 1:  # endpoints: half-edge collapse, the cheaper direction
+        ca = _cost_at(P[a], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
+                      n_bnd, link, n_link, l2)
+        cb = _cost_at(P[b], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
+                      n_bnd, link, n_link, l2)
+        keep = a if ca < cb else b
+        out_p[:] = P[keep]
+        return min(ca, cb), keep
+    elif placement == 2:
+        out_p[:] = 0.5 * (P[a] + P[b])
+    elif placement == 3 and n_tris > 0:
+        q, ok = lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
+                             l2, LT_ALPHA_DEG, LT_VOLUME_WEIGHT, LT_BOUNDARY_WEIGHT)
+        if ok:
+            out_p[:] = q
+        else:  # degenerate profile: the quadric's choice (Lindstrom & Turk fall back too)
+            _optimal_point(qsum, P[a], P[b], out_p)
+    else:
+        _optimal_point(qsum, P[a], P[b], out_p)
+    return _cost_at(out_p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
+                    n_bnd, link, n_link, l2), keep
+
+
+@njit(cache=True)
+def _cost_at(p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link,
+             n_link, l2):
+    cost = 0.0
+    if w_q != 0.0:
+        cost += w_q * quadric_error(qsum, p)
+    if w_lt != 0.0 and n_tris > 0:
+        cost += w_lt * lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link,
+                               n_link, l2, LT_VOLUME_WEIGHT, LT_BOUNDARY_WEIGHT,
+                               LT_SHAPE_WEIGHT)
+    return cost
 
 
 # -- one collapse -------------------------------------------------------------------------
@@ -519,7 +709,7 @@ def _push(heap, cost, a, b, sa, sb):
 
 @njit(cache=True)
 def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, target,
-         placement, w_quadric, cos_limit, boundary_lock, verify, max_collapses):
+         placement, weights, cos_limit, boundary_lock, seam_rule, verify, max_collapses):
     nv = P.shape[0]
     mark = np.zeros(nv, np.int64)
     tick = np.zeros(1, np.int64)
@@ -531,6 +721,9 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
     wmap_to = np.empty(8, np.int64)
     qsum = np.empty(10)
     p = np.empty(3)
+    cap = 256  # triangles around an edge; a larger profile falls back to the quadric
+    ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)),
+          np.empty((cap, 3)), np.empty((cap, 3)))
     rejects = np.zeros(_N_REJECTIONS, np.int64)
     log_removed = np.empty(max_collapses, np.int32)
     log_kept = np.empty(max_collapses, np.int32)
@@ -541,11 +734,14 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
     n_changed = 0
     evaluations = 0
     mismatches = 0
-    # blocked edges: rejected candidates, re-queued when an endpoint's stamp changes
-    blk_other = np.empty(16, np.int64)
-    blk_next = np.empty(16, np.int64)
+    # Blocked edges: rejected candidates, re-queued once when either endpoint's stamp
+    # changes. Each record is linked into both endpoints' lists and dies when re-queued,
+    # so an edge is pushed once per rejection, never once per list it sits in.
+    rec_end = np.empty((64, 2), np.int64)
+    rec_next = np.empty((64, 2), np.int64)
+    rec_live = np.zeros(64, np.bool_)
     blk_head = np.full(nv, -1, np.int64)
-    n_blk = 0
+    n_rec = 0
 
     heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0))]
     heap.pop()
@@ -555,7 +751,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
         for j in range(3):
             a, b = F[f, j], F[f, (j + 1) % 3]
             if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
-                cost, keep = _evaluate(a, b, P, Q, placement, w_quadric, qsum, p)
+                cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark,
+                                       tick, ws, placement, weights, seam_rule, qsum, p)
                 evaluations += 1
                 _push(heap, cost, a, b, 0, 0)
 
@@ -575,31 +772,39 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
         if sa != stamp[a] or sb != stamp[b]:  # stale: re-cost lazily and push back
             if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
                 continue
-            cost, keep = _evaluate(a, b, P, Q, placement, w_quadric, qsum, p)
+            cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark,
+                                       tick, ws, placement, weights, seam_rule, qsum, p)
             evaluations += 1
             _push(heap, cost, a, b, stamp[a], stamp[b])
             continue
         if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
             continue
-        fresh, keep = _evaluate(a, b, P, Q, placement, w_quadric, qsum, p)
+        fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark,
+                                       tick, ws, placement, weights, seam_rule, qsum, p)
         evaluations += 1
         if verify and abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
             mismatches += 1
         u = a if keep == b else b
         v = keep
-        code = _check(u, v, p, P, F, vhead, cnext, falive, mark, tick, nbr_u, nbr_v, efaces,
-                      cos_limit, boundary_lock)
+        if fresh == np.inf:
+            code = 7  # seam rule
+        else:
+            code = _check(u, v, p, P, F, vhead, cnext, falive, mark, tick, nbr_u, nbr_v,
+                          efaces, cos_limit, boundary_lock)
         if code != 0:
             rejects[code - 1] += 1
-            for side in range(2):  # remember it at both ends
-                x = a if side == 0 else b
-                if n_blk == blk_other.shape[0]:
-                    blk_other = np.concatenate((blk_other, np.empty_like(blk_other)))
-                    blk_next = np.concatenate((blk_next, np.empty_like(blk_next)))
-                blk_other[n_blk] = b if side == 0 else a
-                blk_next[n_blk] = blk_head[x]
-                blk_head[x] = n_blk
-                n_blk += 1
+            if n_rec == rec_live.shape[0]:
+                rec_end = np.concatenate((rec_end, np.empty_like(rec_end)))
+                rec_next = np.concatenate((rec_next, np.empty_like(rec_next)))
+                rec_live = np.concatenate((rec_live, np.zeros_like(rec_live)))
+            rec_end[n_rec, 0] = a
+            rec_end[n_rec, 1] = b
+            rec_next[n_rec, 0] = blk_head[a]
+            rec_next[n_rec, 1] = blk_head[b]
+            rec_live[n_rec] = True
+            blk_head[a] = n_rec
+            blk_head[b] = n_rec
+            n_rec += 1
             continue
         if n >= max_collapses:
             break
@@ -624,16 +829,20 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
             stamp[w] += 1
             j = blk_head[w]
             while j != -1:
-                o = blk_other[j]
-                if valive[o]:
-                    _push(heap, cost, w, o, -1, -1)
-                j = blk_next[j]
+                side = 0 if rec_end[j, 0] == w else 1
+                if rec_live[j]:
+                    rec_live[j] = False
+                    o = rec_end[j, 1 - side]
+                    if valive[o]:
+                        _push(heap, cost, w, o, -1, -1)
+                j = rec_next[j, side]
             blk_head[w] = -1
         for i in range(m):
             w = nbr_v[i]
             if w == v:
                 continue
-            c2, k2 = _evaluate(v, w, P, Q, placement, w_quadric, qsum, p)
+            c2, k2 = _evaluate(v, w, P, Q, F, FW, vhead, cnext, falive, efaces, mark,
+                               tick, ws, placement, weights, seam_rule, qsum, p)
             evaluations += 1
             _push(heap, c2, v, w, stamp[v], stamp[w])
     if faces <= target:
@@ -672,6 +881,18 @@ def _boundary_corners(mesh: Mesh) -> np.ndarray:
     return np.isin(keys, bkeys).reshape(-1, 3)
 
 
+def initial_quadrics(mesh: Mesh, boundary_weight: float) -> np.ndarray:
+    """Per welded vertex (nv, 10): face planes plus boundary planes (see face_quadrics)."""
+    w = mesh.welded
+    P = w.positions.astype(np.float64)
+    F = w.faces.astype(np.int64)
+    alive = np.ones(len(F), bool)
+    Q = face_quadrics(P, F, alive)
+    if boundary_weight > 0:
+        _add_boundary_quadrics(Q, P, F, alive, _boundary_corners(mesh), boundary_weight)
+    return Q
+
+
 def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
                   verify: bool = False) -> EngineResult:
     """Collapse edges of ``mesh`` until it has at most ``target_faces`` faces (or no
@@ -706,14 +927,14 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     has_uv = mesh.uv is not None
     uv = mesh.uv.copy() if has_uv else np.zeros((1, 2))
 
-    Q = face_quadrics(P, F, falive, 0.0)
-    if policy.boundary_weight > 0:
-        _add_boundary_quadrics(Q, P, F, falive, _boundary_corners(mesh), policy.boundary_weight)
+    Q = initial_quadrics(mesh, policy.boundary_weight)
 
     cos_limit = math.cos(math.radians(policy.max_normal_rotation))
     out = _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv,
-               int(target_faces), PLACEMENTS[policy.placement], float(policy.quadric_weight),
-               cos_limit, bool(policy.boundary_lock), bool(verify), max(1, nv))
+               int(target_faces), PLACEMENTS[policy.placement],
+               np.array([policy.quadric_weight, policy.memoryless_weight], np.float64),
+               cos_limit, bool(policy.boundary_lock), bool(policy.seam_rule), bool(verify),
+               max(1, nv))
     (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
      log_faces, log_start, log_changed) = out
 
@@ -734,7 +955,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     log = {"removed": log_removed, "kept": log_kept, "position": log_pos,
            "removed_faces": log_faces, "changed_start": log_start,
            "changed_faces": log_changed}
-    return EngineResult(simplified, reason, stats, log)
+    return EngineResult(simplified, reason, stats, log, quadrics=Q, vertex_alive=valive)
 
 
 def _extract(mesh: Mesh, P, faces_wedges, wedge_vertex, uv) -> Mesh:

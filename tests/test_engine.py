@@ -1,0 +1,264 @@
+"""The edge-collapse engine on tiny hand-built meshes with exact expectations, its
+invariants (lazy queue, incremental quadrics, collapse log), and its numba kernels
+against slow NumPy versions."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from bench.mesh import Mesh
+from methods.engine import (Policy, _corner_lists, _optimal_point, face_quadrics,
+                            initial_quadrics, quadric_error, simplify_mesh)
+
+
+def grid(n: int, z=lambda x, y: 0.0 * x):
+    """An n×n grid of quads over [0, 1]², split into triangles, counter-clockwise::
+
+        (0,1) +---+---+ (1,1)
+              | / | / |
+              +---+---+
+              | / | / |
+        (0,0) +---+---+ (1,0)
+    """
+    xs = np.linspace(0, 1, n + 1)
+    x, y = np.meshgrid(xs, xs, indexing="ij")
+    positions = np.stack([x, y, z(x, y)], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a = (i * (n + 1) + j).reshape(-1)
+    b, c, d = a + (n + 1), a + (n + 1) + 1, a + 1
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return positions, faces
+
+
+def cube(n: int) -> Mesh:
+    """A unit cube, each side an n×n grid, welded (closed, outward)."""
+    positions, faces = [], []
+    base, f2 = grid(n)
+    for axis in range(3):
+        for side in (0.0, 1.0):
+            p = np.insert(base[:, :2], axis, side, axis=1)
+            f = f2 if (side == 1.0) == (axis != 1) else f2[:, ::-1]
+            faces.append(f + len(positions) * len(base))
+            positions.append(p)
+    positions = np.concatenate(positions)
+    faces = np.concatenate(faces)
+    # weld equal positions so the cube is one closed surface
+    unique, inverse = np.unique(positions.round(12), axis=0, return_inverse=True)
+    return Mesh(unique, inverse.reshape(-1)[faces])
+
+
+def test_planar_grid_collapses_to_two_faces_with_zero_error():
+    positions, faces = grid(4)  # 32 faces, flat
+    result = simplify_mesh(Mesh(positions, faces), 2)
+    assert result.stop_reason is None
+    assert result.mesh.n_faces == 2
+    corners = {(0.0, 0.0), (0.0, 1.0), (1.0, 0.0), (1.0, 1.0)}
+    got = {tuple(np.round(p[:2], 12)) for p in result.mesh.positions}
+    assert got == corners
+    assert np.all(result.mesh.positions[:, 2] == 0.0)
+
+
+def test_cube_keeps_its_eight_corners():
+    mesh = cube(3)  # 108 faces
+    signed = np.einsum("ij,ij->i", mesh.positions[mesh.faces[:, 0]],
+                       np.cross(mesh.positions[mesh.faces[:, 1]], mesh.positions[mesh.faces[:, 2]]))
+    assert signed.sum() > 0  # outward
+    result = simplify_mesh(mesh, 12)
+    assert result.mesh.n_faces == 12
+    got = {tuple(np.round(p, 9)) for p in result.mesh.positions}
+    assert got == set(itertools.product((0.0, 1.0), repeat=3))
+    assert result.mesh.welded.boundary.sum() == 0
+
+
+def test_two_uv_charts_keep_both_charts_and_no_crack():
+    """A flat 4×4 grid whose left and right halves are separate UV charts: the middle
+    column of vertices is duplicated (a seam), left chart UVs in [0, 0.4], right chart
+    in [0.6, 1]::
+
+        +--+--+||+--+--+      || = seam (vertices stored twice)
+        |  |  ||   |  |
+        +--+--+||+--+--+
+    """
+    positions, faces = grid(4)
+    x = positions[:, 0]
+    right_faces = positions[faces].mean(axis=1)[:, 0] > 0.5
+    seam = np.flatnonzero(np.isclose(x, 0.5))
+    copies = np.arange(len(positions), len(positions) + len(seam))
+    remap = np.arange(len(positions))
+    remap[seam] = copies
+    faces = faces.copy()
+    faces[right_faces] = remap[faces[right_faces]]
+    positions = np.concatenate([positions, positions[seam]])
+    uv = np.where((np.arange(len(positions)) >= len(x))[:, None] | (positions[:, :1] > 0.5),
+                  np.column_stack([0.6 + 0.8 * (positions[:, 0] - 0.5), positions[:, 1]]),
+                  np.column_stack([0.8 * positions[:, 0], positions[:, 1]]))
+    mesh = Mesh(positions, faces, uv=uv)
+    assert mesh.welded.seam.sum() == 4
+    result = simplify_mesh(mesh, 4)
+    out = result.mesh
+    w = out.welded
+    assert out.n_faces == 4
+    assert w.seam.sum() >= 1  # the seam survives as a seam, not a crack
+    # every boundary edge lies on the outer square
+    b = w.positions[w.edges[w.boundary]]
+    on_outer = np.all((np.isclose(b[..., 0], 0) | np.isclose(b[..., 0], 1))
+                      | (np.isclose(b[..., 1], 0) | np.isclose(b[..., 1], 1)), axis=1)
+    assert on_outer.all()
+    centroid_x = out.positions[out.faces].mean(axis=1)[:, 0]
+    face_u = out.uv[out.faces].mean(axis=1)[:, 0]
+    assert np.all(face_u[centroid_x < 0.5] <= 0.4 + 1e-12)  # left chart stays left
+    assert np.all(face_u[centroid_x > 0.5] >= 0.6 - 1e-12)
+
+
+def test_tetrahedron_stops_at_four_faces_and_says_why():
+    """   3
+         /|\\     every collapse would leave two faces sharing three vertices
+        0-+-2
+         \\|/
+          1"""
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    faces = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    result = simplify_mesh(Mesh(positions, faces), 2)
+    assert result.mesh.n_faces == 4
+    assert "no valid collapse remains at 4 faces" in result.stop_reason
+    assert "duplicate face" in result.stop_reason
+    assert result.stats["collapses"] == 0
+
+
+def test_lazy_costs_equal_fresh_costs_when_popped(bunny_textured):
+    result = simplify_mesh(bunny_textured, 500, verify=True)
+    assert result.stats["lazy_mismatches"] == 0
+    assert result.stats["collapses"] > 2000
+
+
+def test_incremental_quadrics_equal_recomputed(bunny_textured):
+    policy = Policy()
+    result = simplify_mesh(bunny_textured, 2000, policy)
+    expected = initial_quadrics(bunny_textured, policy.boundary_weight)
+    for removed, kept in zip(result.log["removed"], result.log["kept"]):
+        expected[kept] += expected[removed]
+    alive = result.vertex_alive
+    np.testing.assert_allclose(result.quadrics[alive], expected[alive], rtol=1e-12, atol=1e-18)
+
+
+def test_collapse_log_replays_to_the_result(bunny_textured):
+    """Applying the log to the original welded faces gives the final faces."""
+    result = simplify_mesh(bunny_textured, 1500)
+    faces = bunny_textured.welded.faces.astype(np.int64).copy()
+    alive = np.ones(len(faces), bool)
+    log = result.log
+    for i, (u, v) in enumerate(zip(log["removed"], log["kept"])):
+        for f in log["removed_faces"][i]:
+            if f >= 0:
+                alive[f] = False
+        for f in log["changed_faces"][log["changed_start"][i]:log["changed_start"][i + 1]]:
+            faces[f][faces[f] == u] = v
+    assert alive.sum() == result.mesh.n_faces
+    replay = {tuple(sorted(f)) for f in faces[alive].tolist()}
+    final = result.mesh.welded
+    # compare by positions (welded indices are renumbered in the result)
+    key = lambda pos: tuple(np.round(pos, 12))
+    positions = bunny_textured.welded.positions.copy()
+    for i, v in enumerate(log["kept"]):
+        positions[v] = log["position"][i]
+    replayed = {tuple(sorted(key(positions[j]) for j in f)) for f in replay}
+    got = {tuple(sorted(key(final.positions[j]) for j in f)) for f in final.faces.tolist()}
+    assert replayed == got
+
+
+def test_seams_never_open_on_the_textured_bunny(bunny_textured):
+    from metrics.topology import seam_cracks
+
+    out = simplify_mesh(bunny_textured, 300).mesh
+    assert seam_cracks(bunny_textured, out) == 0
+    assert out.welded.non_manifold.sum() == 0
+
+
+def test_boundary_lock_keeps_boundary_vertices():
+    positions, faces = grid(6)
+    mesh = Mesh(positions, faces)
+    out = simplify_mesh(mesh, 10, Policy(boundary_lock=True))
+    boundary = {tuple(p) for p in positions[np.unique(mesh.boundary_edges)]}
+    got = {tuple(p) for p in out.mesh.positions}
+    assert boundary <= got
+    assert "boundary lock" in out.stop_reason
+
+
+def test_half_edge_collapses_keep_original_positions(bunny_textured):
+    out = simplify_mesh(bunny_textured, 1000, Policy(placement="endpoints")).mesh
+    original = {tuple(p) for p in bunny_textured.positions}
+    assert all(tuple(p) in original for p in out.positions)
+
+
+def test_target_below_one_is_an_error():
+    positions, faces = grid(2)
+    with pytest.raises(ValueError, match="at least 1"):
+        simplify_mesh(Mesh(positions, faces), 0)
+    with pytest.raises(ValueError, match="unknown placement"):
+        Policy(placement="best")
+
+
+# -- kernels against NumPy ------------------------------------------------------------------
+
+def _numpy_quadrics(P, F):
+    Q = np.zeros((len(P), 4, 4))
+    for f in F:
+        n = np.cross(P[f[1]] - P[f[0]], P[f[2]] - P[f[0]])
+        area = np.linalg.norm(n) / 2
+        n = n / np.linalg.norm(n)
+        plane = np.append(n, -n @ P[f[0]])
+        for v in f:
+            Q[v] += area * np.outer(plane, plane)
+    return Q
+
+
+def _unpack(q):
+    iu = np.triu_indices(4)
+    m = np.zeros((4, 4))
+    m[iu] = q
+    return m + np.triu(m, 1).T
+
+
+def test_face_quadrics_and_error_match_numpy():
+    rng = np.random.default_rng(3)
+    P = rng.normal(size=(6, 3))
+    F = np.array([[0, 1, 2], [2, 3, 4], [1, 4, 5], [0, 5, 3]])
+    Q = face_quadrics(P, F, np.ones(len(F), bool))
+    ref = _numpy_quadrics(P, F)
+    for v in range(len(P)):
+        np.testing.assert_allclose(_unpack(Q[v]), ref[v], rtol=1e-12, atol=1e-14)
+        p = rng.normal(size=3)
+        h = np.append(p, 1.0)
+        assert np.isclose(quadric_error(Q[v], p), h @ ref[v] @ h, rtol=1e-12)
+
+
+def test_optimal_point_matches_linear_solve_and_falls_back():
+    rng = np.random.default_rng(5)
+    planes = rng.normal(size=(5, 4))
+    M = sum(np.outer(p, p) for p in planes)
+    q = M[np.triu_indices(4)]
+    out = np.empty(3)
+    err = _optimal_point(q, np.zeros(3), np.ones(3), out)
+    expected = np.linalg.solve(M[:3, :3], -M[:3, 3])
+    np.testing.assert_allclose(out, expected, rtol=1e-9)
+    assert np.isclose(err, np.append(expected, 1) @ M @ np.append(expected, 1))
+    # one plane only: singular, so the best of the endpoints and the midpoint
+    M1 = np.outer([0, 0, 1, -1.0], [0, 0, 1, -1.0])  # plane z = 1
+    err = _optimal_point(M1[np.triu_indices(4)], np.array([0, 0, 0.0]), np.array([0, 0, 1.0]), out)
+    np.testing.assert_array_equal(out, [0, 0, 1])
+    assert err == 0.0
+
+
+def test_corner_lists_link_every_corner_once():
+    F = np.array([[0, 1, 2], [2, 1, 3], [3, 1, 0]])
+    vhead, cnext = _corner_lists(F, 4)
+    for v in range(4):
+        corners = []
+        c = vhead[v]
+        while c != -1:
+            corners.append(c)
+            c = cnext[c]
+        assert sorted(corners) == sorted(np.flatnonzero(F.reshape(-1) == v).tolist())
