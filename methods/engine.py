@@ -336,16 +336,6 @@ def _edge_faces(u, v, F, vhead, cnext, falive, out):
 
 
 @njit(cache=True)
-def _is_boundary_vertex(v, F, vhead, cnext, falive, mark, tick, nbr, efaces):
-    n = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr)
-    for i in range(n):
-        w = nbr[i]
-        if w != v and _edge_faces(v, w, F, vhead, cnext, falive, efaces) == 1:
-            return True
-    return False
-
-
-@njit(cache=True)
 def _third(F, f, a, b):
     for k in range(3):
         w = F[f, k]
@@ -362,8 +352,8 @@ def _normal(pa, pb, pc):
 # -- validity -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _check(u, v, p, P, F, vhead, cnext, falive, mark, tick, nbr_u, nbr_v, efaces,
-           cos_limit, boundary_lock):
+def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nbr_v,
+           efaces, cos_limit, boundary_lock):
     """0 if collapsing u into v at p is valid, else 1 + index into REJECTIONS."""
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     if k > 2 or k == 0:
@@ -379,8 +369,8 @@ def _check(u, v, p, P, F, vhead, cnext, falive, mark, tick, nbr_u, nbr_v, efaces
     if common != k:
         return 1  # link condition
     if boundary_lock or k == 2:
-        bu = _is_boundary_vertex(u, F, vhead, cnext, falive, mark, tick, nbr_u, efaces[2:])
-        bv = _is_boundary_vertex(v, F, vhead, cnext, falive, mark, tick, nbr_u, efaces[2:])
+        bu = vboundary[u]
+        bv = vboundary[v]
         if boundary_lock and (bu or bv):
             return 6
         if k == 2 and bu and bv:
@@ -469,7 +459,7 @@ def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
 
 
 @njit(cache=True)
-def _gather_profile(a, b, P, F, vhead, cnext, falive, efaces, mark, tick,
+def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, tick,
                     tri_a, tri_b, tri_c, bnd_a, bnd_b, link):
     """The Lindstrom–Turk profile of edge (a, b): triangles around either end, their
     boundary edges (oriented as in the triangle) and the link vertices. Returns
@@ -493,13 +483,16 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, efaces, mark, tick,
                 if side == 0 or not has_y:  # faces of the edge are counted once
                     if n_tris == cap:
                         return -1, 0, 0
-                    tri_a[n_tris] = P[F[f, 0]]
-                    tri_b[n_tris] = P[F[f, 1]]
-                    tri_c[n_tris] = P[F[f, 2]]
+                    f0, f1, f2 = F[f, 0], F[f, 1], F[f, 2]
+                    for d in range(3):  # scalar copies: no temporary views per row
+                        tri_a[n_tris, d] = P[f0, d]
+                        tri_b[n_tris, d] = P[f1, d]
+                        tri_c[n_tris, d] = P[f2, d]
                     n_tris += 1
                     for j in range(3):
                         i0, i1 = F[f, j], F[f, (j + 1) % 3]
                         if (i0 == a or i0 == b or i1 == a or i1 == b) and \
+                                vboundary[i0] and vboundary[i1] and \
                                 _edge_faces(i0, i1, F, vhead, cnext, falive, efaces) == 1:
                             if n_bnd == cap:
                                 return -1, 0, 0
@@ -512,7 +505,8 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, efaces, mark, tick,
                             mark[w] = t
                             if n_link == cap:
                                 return -1, 0, 0
-                            link[n_link] = P[w]
+                            for d in range(3):
+                                link[n_link, d] = P[w, d]
                             n_link += 1
             c = cnext[c]
     return n_tris, n_bnd, n_link
@@ -554,8 +548,8 @@ def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
 
 
 @njit(cache=True)
-def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark, tick, ws, placement,
-              weights, seam_rule, qsum, out_p):
+def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, tick, ws,
+              placement, weights, seam_rule, qsum, out_p):
     """Cost of collapsing edge (a, b) and where the kept vertex goes.
 
     ``weights`` = (quadric, memoryless) cost-term weights; ``ws`` = the Lindstrom–Turk
@@ -589,8 +583,8 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark, tick, ws, p
     e = P[a] - P[b]
     l2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
     if w_lt != 0.0 or placement == 3:
-        n_tris, n_bnd, n_link = _gather_profile(a, b, P, F, vhead, cnext, falive, efaces,
-                                                mark, tick, tri_a, tri_b, tri_c, bnd_a,
+        n_tris, n_bnd, n_link = _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary,
+                                                efaces, mark, tick, tri_a, tri_b, tri_c, bnd_a,
                                                 bnd_b, link)
     keep = b
     if forced != -1:
@@ -669,6 +663,8 @@ def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, 
             uv[b, 1] = (1.0 - t) * uv[a, 1] + t * uv[b, 1]
     for i in range(k):
         falive[efaces[i]] = False
+    for i in range(k):  # the apexes of removed faces hold dead corners now
+        _compact(_third(F, efaces[i], u, v), vhead, cnext, falive)
     # Rename u to v in its surviving faces; remap paired wedges; move u's other wedges.
     c = vhead[u]
     last = -1
@@ -708,7 +704,8 @@ def _push(heap, cost, a, b, sa, sb):
 # -- the loop -----------------------------------------------------------------------------
 
 @njit(cache=True)
-def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, target,
+def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
+         target,
          placement, weights, cos_limit, boundary_lock, seam_rule, verify, max_collapses):
     nv = P.shape[0]
     mark = np.zeros(nv, np.int64)
@@ -742,6 +739,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
     rec_live = np.zeros(64, np.bool_)
     blk_head = np.full(nv, -1, np.int64)
     n_rec = 0
+    neighbourhood_cost = weights[1] != 0.0  # the Lindstrom-Turk term looks at triangles
 
     heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0))]
     heap.pop()
@@ -751,8 +749,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
         for j in range(3):
             a, b = F[f, j], F[f, (j + 1) % 3]
             if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
-                cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark,
-                                       tick, ws, placement, weights, seam_rule, qsum, p)
+                cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
+                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p)
                 evaluations += 1
                 _push(heap, cost, a, b, 0, 0)
 
@@ -769,18 +767,21 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
         cost, a, b, sa, sb = heapq.heappop(heap)
         if not valive[a] or not valive[b]:
             continue
-        if sa != stamp[a] or sb != stamp[b]:  # stale: re-cost lazily and push back
+        if sa != stamp[a] or sb != stamp[b]:  # stale
+            if sa != -1 and not neighbourhood_cost:
+                continue  # superseded: fresh entries were pushed when the stamp changed
+            # re-cost lazily and push back
             if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
                 continue
-            cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark,
-                                       tick, ws, placement, weights, seam_rule, qsum, p)
+            cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
+                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p)
             evaluations += 1
             _push(heap, cost, a, b, stamp[a], stamp[b])
             continue
         if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
             continue
-        fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, efaces, mark,
-                                       tick, ws, placement, weights, seam_rule, qsum, p)
+        fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
+                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p)
         evaluations += 1
         if verify and abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
             mismatches += 1
@@ -789,8 +790,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
         if fresh == np.inf:
             code = 7  # seam rule
         else:
-            code = _check(u, v, p, P, F, vhead, cnext, falive, mark, tick, nbr_u, nbr_v,
-                          efaces, cos_limit, boundary_lock)
+            code = _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u,
+                          nbr_v, efaces, cos_limit, boundary_lock)
         if code != 0:
             rejects[code - 1] += 1
             if n_rec == rec_live.shape[0]:
@@ -821,12 +822,17 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
         n += 1
         log_start[n] = n_changed
         faces -= removed
-        # Stamp v and its neighbours (their costs may have changed), requeue their
-        # blocked edges, and push fresh entries for v's edges.
+        vboundary[v] = vboundary[v] or vboundary[u]  # a boundary vertex stays one
+        # Stamp v, and its neighbours when costs depend on the triangles around an edge
+        # (a quadric cost of (w, x) depends only on w and x, which did not change);
+        # requeue the neighbours' blocked edges (their validity may have changed), and
+        # push fresh entries for v's edges.
         m = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr_v)
+        stamp[v] += 1
         for i in range(m):
             w = nbr_v[i]
-            stamp[w] += 1
+            if neighbourhood_cost and w != v:
+                stamp[w] += 1
             j = blk_head[w]
             while j != -1:
                 side = 0 if rec_end[j, 0] == w else 1
@@ -841,8 +847,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv, ta
             w = nbr_v[i]
             if w == v:
                 continue
-            c2, k2 = _evaluate(v, w, P, Q, F, FW, vhead, cnext, falive, efaces, mark,
-                               tick, ws, placement, weights, seam_rule, qsum, p)
+            c2, k2 = _evaluate(v, w, P, Q, F, FW, vhead, cnext, falive, vboundary,
+                               efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p)
             evaluations += 1
             _push(heap, c2, v, w, stamp[v], stamp[w])
     if faces <= target:
@@ -930,10 +936,13 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     Q = initial_quadrics(mesh, policy.boundary_weight)
 
     cos_limit = math.cos(math.radians(policy.max_normal_rotation))
-    out = _run(P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv, has_uv,
+    vboundary = np.zeros(nv, bool)
+    vboundary[w.edges[w.boundary].reshape(-1)] = True
+    out = _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
                int(target_faces), PLACEMENTS[policy.placement],
                np.array([policy.quadric_weight, policy.memoryless_weight], np.float64),
-               cos_limit, bool(policy.boundary_lock), bool(policy.seam_rule), bool(verify),
+               cos_limit, bool(policy.boundary_lock),
+               bool(policy.seam_rule and mesh.n_vertices != w.n_vertices), bool(verify),
                max(1, nv))
     (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
      log_faces, log_start, log_changed) = out
