@@ -63,6 +63,7 @@ import numpy as np
 from numba import njit
 
 from bench.mesh import Mesh
+from methods.canny import _walk
 from methods.memoryless_math import lt_cost, lt_placement
 
 __all__ = ["Policy", "EngineResult", "simplify_mesh", "PLACEMENTS", "STOP_REASONS",
@@ -549,10 +550,10 @@ def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
 
 @njit(cache=True)
 def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, tick, ws,
-              placement, weights, seam_rule, qsum, out_p):
+              placement, weights, seam_rule, qsum, out_p, uv, borders, inv_area, no_record):
     """Cost of collapsing edge (a, b) and where the kept vertex goes.
 
-    ``weights`` = (quadric, memoryless) cost-term weights; ``ws`` = the Lindstrom–Turk
+    ``weights`` = (quadric, memoryless, canny) cost-term weights; ``ws`` = the Lindstrom–Turk
     workspace (tri_a, tri_b, tri_c, bnd_a, bnd_b, link). Returns (cost, keep): keep is
     the vertex that survives (the other is removed), and the new position is written to
     ``out_p``. cost is +inf when the seam rule forbids the collapse.
@@ -586,6 +587,10 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
         n_tris, n_bnd, n_link = _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary,
                                                 efaces, mark, tick, tri_a, tri_b, tri_c, bnd_a,
                                                 bnd_b, link)
+    canny = 0.0
+    if weights[2] != 0.0:  # depends on the edge only, not on where the vertex goes
+        canny = weights[2] * _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext,
+                                            falive, efaces, inv_area, no_record)
     keep = b
     if forced != -1:
         keep = forced
@@ -597,7 +602,7 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
                       n_bnd, link, n_link, l2)
         keep = a if ca < cb else b
         out_p[:] = P[keep]
-        return min(ca, cb), keep
+        return min(ca, cb) + canny, keep
     elif placement == 2:
         out_p[:] = 0.5 * (P[a] + P[b])
     elif placement == 3 and n_tris > 0:
@@ -610,7 +615,35 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
     else:
         _optimal_point(qsum, P[a], P[b], out_p)
     return _cost_at(out_p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
-                    n_bnd, link, n_link, l2), keep
+                    n_bnd, link, n_link, l2) + canny, keep
+
+
+@njit(cache=True)
+def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, inv_area,
+                   no_record):
+    """González et al. 2007, equations 1-2: (area of the edge's faces) / (total area)
+    when the edge's UV segment, in any of its faces' charts, crosses a texture border;
+    0 otherwise. ``inv_area`` is 1 / the original's total area (positions normalised)."""
+    k = _edge_faces(a, b, F, vhead, cnext, falive, efaces)
+    h, w = borders.shape
+    crossing = False
+    area = 0.0
+    for i in range(min(k, efaces.shape[0])):
+        f = efaces[i]
+        wa = -1
+        wb = -1
+        for j in range(3):
+            if F[f, j] == a:
+                wa = FW[f, j]
+            elif F[f, j] == b:
+                wb = FW[f, j]
+        if not crossing:
+            _, hit = _walk(uv[wa, 0] * w, uv[wa, 1] * h, uv[wb, 0] * w, uv[wb, 1] * h,
+                           borders, no_record)
+            crossing = hit
+        n = _normal(P[F[f, 0]], P[F[f, 1]], P[F[f, 2]])
+        area += 0.5 * math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
+    return area * inv_area if crossing else 0.0
 
 
 @njit(cache=True)
@@ -706,7 +739,8 @@ def _push(heap, cost, a, b, sa, sb):
 @njit(cache=True)
 def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
          target,
-         placement, weights, cos_limit, boundary_lock, seam_rule, verify, max_collapses):
+         placement, weights, cos_limit, boundary_lock, seam_rule, verify, max_collapses,
+         borders, inv_area, moved):
     nv = P.shape[0]
     mark = np.zeros(nv, np.int64)
     tick = np.zeros(1, np.int64)
@@ -739,7 +773,9 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     rec_live = np.zeros(64, np.bool_)
     blk_head = np.full(nv, -1, np.int64)
     n_rec = 0
-    neighbourhood_cost = weights[1] != 0.0  # the Lindstrom-Turk term looks at triangles
+    # the Lindstrom-Turk and Canny terms look at the triangles around an edge
+    neighbourhood_cost = weights[1] != 0.0 or weights[2] != 0.0
+    no_record = np.empty((0, 2), np.int64)
 
     heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0))]
     heap.pop()
@@ -750,7 +786,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             a, b = F[f, j], F[f, (j + 1) % 3]
             if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
                 cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p)
+                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
+                                       no_record)
                 evaluations += 1
                 _push(heap, cost, a, b, 0, 0)
 
@@ -774,14 +811,16 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
                 continue
             cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p)
+                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
+                                       no_record)
             evaluations += 1
             _push(heap, cost, a, b, stamp[a], stamp[b])
             continue
         if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
             continue
         fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p)
+                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
+                                       no_record)
         evaluations += 1
         if verify and abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
             mismatches += 1
@@ -814,6 +853,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
         log_removed[n] = u
         log_kept[n] = v
         log_pos[n] = p
+        if p[0] != P[v, 0] or p[1] != P[v, 1] or p[2] != P[v, 2]:
+            moved[v] = True
         removed, n_changed = _collapse(u, v, p.copy(), P, Q, F, FW, falive, vhead, cnext,
                                        valive, wedge_vertex, uv, has_uv, efaces, wmap_from,
                                        wmap_to, log_changed, n_changed)
@@ -848,9 +889,31 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             if w == v:
                 continue
             c2, k2 = _evaluate(v, w, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                               efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p)
+                               efaces, mark, tick, ws, placement, weights, seam_rule, qsum,
+                               p, uv, borders, inv_area, no_record)
             evaluations += 1
             _push(heap, c2, v, w, stamp[v], stamp[w])
+        # The apexes of the removed faces lost a face, which can change whether they are
+        # seam vertices (and so the seam rule's verdict on their edges): give them fresh
+        # entries too. (With neighbourhood costs they were stamped above and are
+        # re-costed lazily.)
+        if seam_rule and not neighbourhood_cost:
+            for i in range(min(removed, 2)):
+                x = log_faces[n - 1, i]
+                x = _third(F, x, u, v)
+                if x == -1 or not valive[x]:
+                    continue
+                stamp[x] += 1
+                mx = _neighbors(x, F, vhead, cnext, falive, mark, tick, nbr_u)
+                for i2 in range(mx):
+                    y = nbr_u[i2]
+                    if y == x:
+                        continue
+                    c2, k2 = _evaluate(x, y, P, Q, F, FW, vhead, cnext, falive, vboundary,
+                                       efaces, mark, tick, ws, placement, weights, seam_rule,
+                                       qsum, p, uv, borders, inv_area, no_record)
+                    evaluations += 1
+                    _push(heap, c2, x, y, stamp[x], stamp[y])
     if faces <= target:
         stopped = 0
     return (stopped, n, evaluations, mismatches, rejects, log_removed[:n], log_kept[:n],
@@ -899,8 +962,15 @@ def initial_quadrics(mesh: Mesh, boundary_weight: float) -> np.ndarray:
     return Q
 
 
+def vboundary_of(w, nv: int) -> np.ndarray:
+    """(nv,) bool: welded vertices on a boundary edge."""
+    flags = np.zeros(nv, bool)
+    flags[w.edges[w.boundary].reshape(-1)] = True
+    return flags
+
+
 def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
-                  verify: bool = False) -> EngineResult:
+                  verify: bool = False, borders: np.ndarray | None = None) -> EngineResult:
     """Collapse edges of ``mesh`` until it has at most ``target_faces`` faces (or no
     valid collapse remains) under ``policy``.
 
@@ -914,6 +984,13 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     verify : bool
         Check that every collapse taken at its queued cost has that cost when
         re-evaluated (the lazy-queue invariant); counts go to ``stats``.
+    borders : ndarray of shape (h, w) bool, optional
+        Texture borders for the Canny term (``policy.canny_weight``).
+
+    Notes
+    -----
+    Costs and quadrics are computed on positions normalised to a unit bounding-box
+    diagonal; ``quadrics`` in the result are in those units.
     """
     import time
 
@@ -921,7 +998,14 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
         raise ValueError(f"target_faces must be at least 1, got {target_faces}")
     start = time.perf_counter()
     w = mesh.welded
-    P = w.positions.astype(np.float64).copy()
+    # Work on geometry normalised to a unit bounding-box diagonal, so that cost terms of
+    # different kinds (quadric, Lindstrom-Turk, Canny area ratios) add up the same way
+    # whatever the model's scale. Vertices that never move keep their exact input
+    # positions in the output.
+    P0 = w.positions.astype(np.float64)
+    lo = P0.min(axis=0)
+    scale = float(np.linalg.norm(P0.max(axis=0) - lo)) or 1.0
+    P = (P0 - lo) / scale
     F = w.faces.astype(np.int64).copy()
     FW = mesh.faces.astype(np.int64).copy()
     falive = np.ones(len(F), bool)
@@ -929,21 +1013,31 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     vhead, cnext = _corner_lists(F, nv)
     valive = np.zeros(nv, bool)
     valive[np.unique(F)] = True
+    moved = np.zeros(nv, bool)
     wedge_vertex = w.vertex_of.astype(np.int64).copy()
     has_uv = mesh.uv is not None
     uv = mesh.uv.copy() if has_uv else np.zeros((1, 2))
+    if policy.canny_weight != 0.0 and (borders is None or not has_uv):
+        raise ValueError("the Canny term needs texture borders and UVs; pass borders= "
+                         "(methods.canny.texture_borders) for a mesh with UVs")
+    borders_arr = (np.ascontiguousarray(borders, dtype=np.bool_) if borders is not None
+                   else np.zeros((1, 1), np.bool_))
+    area = float(np.linalg.norm(np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]),
+                                axis=1).sum() / 2)
+    inv_area = 1.0 / area if area > 0 else 0.0
 
-    Q = initial_quadrics(mesh, policy.boundary_weight)
+    Q = initial_quadrics(mesh.replace(positions=(mesh.positions - lo) / scale),
+                         policy.boundary_weight)
 
     cos_limit = math.cos(math.radians(policy.max_normal_rotation))
-    vboundary = np.zeros(nv, bool)
-    vboundary[w.edges[w.boundary].reshape(-1)] = True
-    out = _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
-               int(target_faces), PLACEMENTS[policy.placement],
-               np.array([policy.quadric_weight, policy.memoryless_weight], np.float64),
-               cos_limit, bool(policy.boundary_lock),
+    weights = np.array([policy.quadric_weight, policy.memoryless_weight, policy.canny_weight],
+                       np.float64)
+    out = _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary_of(w, nv), wedge_vertex,
+               uv, has_uv, int(target_faces), PLACEMENTS[policy.placement], weights, cos_limit,
+               bool(policy.boundary_lock),
                bool(policy.seam_rule and mesh.n_vertices != w.n_vertices), bool(verify),
-               max(1, nv))
+               max(1, nv), borders_arr, inv_area, moved)
+    P = np.where(moved[:, None], P * scale + lo, P0)
     (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
      log_faces, log_start, log_changed) = out
 
@@ -961,7 +1055,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
              "collapses_per_second": n / seconds if seconds > 0 else None}
     if verify:
         stats["lazy_mismatches"] = int(mismatches)
-    log = {"removed": log_removed, "kept": log_kept, "position": log_pos,
+    log = {"removed": log_removed, "kept": log_kept, "position": log_pos * scale + lo,
            "removed_faces": log_faces, "changed_start": log_start,
            "changed_faces": log_changed}
     return EngineResult(simplified, reason, stats, log, quadrics=Q, vertex_alive=valive)
