@@ -247,8 +247,13 @@ def _add_boundary_quadrics(Q, P, F, alive, is_boundary_corner, weight):
 
 @njit(cache=True)
 def _optimal_point(q, pa, pb, out):
-    """Minimise the quadric: solve the 3x3 system; if it is ill-conditioned, take the
-    best of the endpoints and the midpoint. Writes ``out``; returns the error."""
+    """Minimise the quadric: solve the 3x3 system; if it is ill-conditioned, or its
+    solution lies farther than the edge's length from the edge's midpoint, take the best
+    of the endpoints and the midpoint. Writes ``out``; returns the error.
+
+    The distance guard matters on tube-like regions (the torus): there the quadric is
+    nearly flat along the tube, passes the determinant test, and its minimiser can lie
+    far along the valley at almost no error, which tears the surface."""
     a00, a01, a02, a11, a12, a22 = q[0], q[1], q[2], q[4], q[5], q[7]
     b0, b1, b2 = -q[3], -q[6], -q[8]
     c00 = a11 * a22 - a12 * a12
@@ -263,7 +268,12 @@ def _optimal_point(q, pa, pb, out):
         out[0] = (c00 * b0 + c01 * b1 + c02 * b2) / det
         out[1] = (c01 * b0 + c11 * b1 + c12 * b2) / det
         out[2] = (c02 * b0 + c12 * b1 + c22 * b2) / det
-        return quadric_error(q, out)
+        d0 = out[0] - 0.5 * (pa[0] + pb[0])
+        d1 = out[1] - 0.5 * (pa[1] + pb[1])
+        d2 = out[2] - 0.5 * (pa[2] + pb[2])
+        e0, e1, e2 = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
+        if d0 * d0 + d1 * d1 + d2 * d2 <= e0 * e0 + e1 * e1 + e2 * e2:
+            return quadric_error(q, out)
     best = quadric_error(q, pa)
     out[:] = pa
     e = quadric_error(q, pb)
@@ -950,15 +960,22 @@ def _boundary_corners(mesh: Mesh) -> np.ndarray:
     return np.isin(keys, bkeys).reshape(-1, 3)
 
 
-def initial_quadrics(mesh: Mesh, boundary_weight: float) -> np.ndarray:
-    """Per welded vertex (nv, 10): face planes plus boundary planes (see face_quadrics)."""
-    w = mesh.welded
-    P = w.positions.astype(np.float64)
-    F = w.faces.astype(np.int64)
+def initial_quadrics(P: np.ndarray, F: np.ndarray, boundary_corners: np.ndarray,
+                     boundary_weight: float) -> np.ndarray:
+    """Per welded vertex (nv, 10): face planes plus boundary planes (see face_quadrics).
+
+    Parameters
+    ----------
+    P : ndarray of shape (nv, 3) float64
+    F : ndarray of shape (m, 3) int
+    boundary_corners : ndarray of shape (m, 3) bool
+        Corner k of face f starts a boundary edge (see _boundary_corners).
+    boundary_weight : float
+    """
     alive = np.ones(len(F), bool)
     Q = face_quadrics(P, F, alive)
     if boundary_weight > 0:
-        _add_boundary_quadrics(Q, P, F, alive, _boundary_corners(mesh), boundary_weight)
+        _add_boundary_quadrics(Q, P, F, alive, boundary_corners, boundary_weight)
     return Q
 
 
@@ -1026,8 +1043,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
                                 axis=1).sum() / 2)
     inv_area = 1.0 / area if area > 0 else 0.0
 
-    Q = initial_quadrics(mesh.replace(positions=(mesh.positions - lo) / scale),
-                         policy.boundary_weight)
+    Q = initial_quadrics(P, F, _boundary_corners(mesh), policy.boundary_weight)
 
     cos_limit = math.cos(math.radians(policy.max_normal_rotation))
     weights = np.array([policy.quadric_weight, policy.memoryless_weight, policy.canny_weight],

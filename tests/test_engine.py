@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from bench.mesh import Mesh
-from methods.engine import (Policy, _corner_lists, _optimal_point, face_quadrics,
+from methods.engine import (Policy, _boundary_corners, _corner_lists, _optimal_point,
+                            face_quadrics,
                             initial_quadrics, quadric_error, simplify_mesh)
 
 
@@ -137,10 +138,11 @@ def test_lazy_costs_equal_fresh_costs_when_popped(bunny_textured):
 def test_incremental_quadrics_equal_recomputed(bunny_textured):
     policy = Policy()
     result = simplify_mesh(bunny_textured, 2000, policy)
-    lo = bunny_textured.positions.min(axis=0)  # the engine works at unit diagonal
-    normalised = bunny_textured.replace(positions=(bunny_textured.positions - lo)
-                                        / bunny_textured.diagonal)
-    expected = initial_quadrics(normalised, policy.boundary_weight)
+    w = bunny_textured.welded
+    lo = w.positions.min(axis=0)  # the engine works at unit diagonal
+    P = (w.positions - lo) / bunny_textured.diagonal
+    expected = initial_quadrics(P, w.faces.astype(np.int64), _boundary_corners(bunny_textured),
+                                policy.boundary_weight)
     for removed, kept in zip(result.log["removed"], result.log["kept"]):
         expected[kept] += expected[removed]
     alive = result.vertex_alive
