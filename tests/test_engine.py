@@ -246,10 +246,14 @@ def test_optimal_point_matches_linear_solve_and_falls_back():
     M = sum(np.outer(p, p) for p in planes)
     q = M[np.triu_indices(4)]
     out = np.empty(3)
-    err = _optimal_point(q, np.zeros(3), np.ones(3), out)
     expected = np.linalg.solve(M[:3, :3], -M[:3, 3])
+    err = _optimal_point(q, expected - 0.5, expected + 0.5, out)  # an edge around it
     np.testing.assert_allclose(out, expected, rtol=1e-9)
     assert np.isclose(err, np.append(expected, 1) @ M @ np.append(expected, 1))
+    # a minimiser farther from the edge's midpoint than the edge is long is not taken
+    far_a, far_b = expected + 10.0, expected + 10.1
+    _optimal_point(q, far_a, far_b, out)
+    assert any(np.array_equal(out, c) for c in (far_a, far_b, 0.5 * (far_a + far_b)))
     # one plane only: singular, so the best of the endpoints and the midpoint
     M1 = np.outer([0, 0, 1, -1.0], [0, 0, 1, -1.0])  # plane z = 1
     err = _optimal_point(M1[np.triu_indices(4)], np.array([0, 0, 0.0]), np.array([0, 0, 1.0]), out)
