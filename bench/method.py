@@ -47,11 +47,15 @@ class SimplifyResult:
         Method statistics (collapses, evaluations, ...), JSON-serialisable.
     stop_reason : str or None
         Why the method stopped away from the target; None when it reached it.
+    artifacts : dict of str to ndarray
+        Images a method wants shown in the report (name -> (h, w, 3) uint8), e.g. the
+        texture borders canny-texture penalises.
     """
 
     mesh: Mesh
     stats: dict = field(default_factory=dict)
     stop_reason: str | None = None
+    artifacts: dict = field(default_factory=dict)
 
 
 class Method:

@@ -32,6 +32,7 @@ th{background:#f3f3f3}td:first-child,td:nth-child(2){text-align:left}
 .sheet figure{margin:0;text-align:center;font-size:.75em}
 .sheet img{width:160px;height:160px;image-rendering:pixelated}
 .plots img{max-width:48%}
+.artifact img{max-width:512px;image-rendering:pixelated}.artifact{margin:0 0 1.5em}
 pre{background:#f7f7f7;padding:.5em;white-space:pre-wrap;font-size:.8em}
 .note{color:#555;font-size:.9em}
 """
@@ -194,6 +195,12 @@ def _sheets(run_dir: Path, records: list[dict]) -> str:
                 for row in rows.values() for caption, uri in row if uri]
         out.append(f"<h3>{html.escape(job['label'])} at {job['target_faces']} faces: "
                    f"d_RMS {r['metrics']['d_rms']:.3f}</h3><div class='sheet'>{''.join(figs)}</div>")
+        for name in r.get("artifacts") or []:  # images the method asked to show
+            uri = _image_uri(run_dir / name)
+            if uri:
+                caption = Path(name).stem.removeprefix("artifact-")
+                out.append(f"<figure class='artifact'><img src='{uri}' alt='{html.escape(caption)}'>"
+                           f"<figcaption>{html.escape(caption)}</figcaption></figure>")
     return "".join(out)
 
 

@@ -24,6 +24,8 @@ from importlib.metadata import PackageNotFoundError, version
 from multiprocessing.connection import wait
 from pathlib import Path
 
+import numpy as np
+
 from bench.results import SCHEMA_VERSION, write_record
 from metrics.protocol import Protocol
 
@@ -127,7 +129,8 @@ def _run_job(job: Job, run_dir: Path, record: dict) -> None:
     stats["peak_mb"] = peak.megabytes()
     removed = mesh.n_faces - result.mesh.n_faces
     stats["tri_per_s"] = removed / stats["wall_seconds"] if stats["wall_seconds"] > 0 else None
-    record.update(stats=stats, stop_reason=result.stop_reason)
+    record.update(stats=stats, stop_reason=result.stop_reason,
+                  artifacts=_save_artifacts(run_dir, job, result.artifacts))
 
     reference = original_images(mesh, job.protocol)
     ev = evaluate(mesh, result.mesh, job.protocol, reference_images=reference)
@@ -153,6 +156,21 @@ def _save_sheet_images(run_dir: Path, job: Job, mesh, reference, images) -> None
             tmp = folder / f".view{v:02d}.{os.getpid()}.png"
             Image.fromarray(stack[v]).save(tmp)
             os.replace(tmp, target)
+
+
+def _save_artifacts(run_dir: Path, job: Job, artifacts: dict) -> list[str]:
+    """Write a method's report images as PNGs beside the job's views; returns the file
+    names (relative to the run directory)."""
+    from PIL import Image
+
+    names = []
+    folder = run_dir / "images" / job.key
+    for name, image in artifacts.items():
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"artifact-{_slug(name)}.png"
+        Image.fromarray(np.asarray(image, dtype=np.uint8)).save(path)
+        names.append(str(path.relative_to(run_dir)))
+    return names
 
 
 class _PeakMemory:

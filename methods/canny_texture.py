@@ -63,7 +63,19 @@ class CannyTexture(Method):
         stats["crossing_edges_before"], stats["crossing_share_before"] = crossing_share(mesh, borders)
         stats["crossing_edges_after"], stats["crossing_share_after"] = crossing_share(
             result.mesh, borders)
-        return SimplifyResult(result.mesh, stats, result.stop_reason)
+        return SimplifyResult(result.mesh, stats, result.stop_reason,
+                              artifacts={"texture borders and penalised edges (red)":
+                                         _penalised_edges_image(mesh, borders)})
+
+
+def _penalised_edges_image(mesh: Mesh, borders):
+    """The border image with the input's penalised edges in red (the paper's Figure 3
+    input), magnified so thin lines stay visible on small textures."""
+    from methods.canny import border_image_with_edges, edge_penalties
+
+    _, _, crossing = edge_penalties(mesh, borders=borders)
+    scale = max(1, 1024 // max(borders.shape))
+    return border_image_with_edges(mesh, borders, crossing, scale=scale)
 
 
 def crossing_share(mesh: Mesh, borders) -> tuple[int, float]:

@@ -1,0 +1,40 @@
+"""The engine's registered methods end to end: quadric, memoryless, canny-texture."""
+
+import numpy as np
+import pytest
+
+from bench.errors import InputError
+from bench.method import run_method, target_tolerance
+from bench.registry import registry
+
+
+@pytest.mark.parametrize("name", ["quadric", "memoryless", "canny-texture"])
+def test_methods_hit_the_target_and_keep_seams_closed(name, bunny_textured):
+    from metrics.topology import seam_cracks
+
+    method = registry("method").load(name)()
+    result = run_method(method, bunny_textured, 1000)
+    assert result.stop_reason is None
+    assert abs(result.mesh.n_faces - 1000) <= target_tolerance(1000)
+    assert seam_cracks(bunny_textured, result.mesh) == 0
+    assert result.mesh.texture is not None and result.mesh.uv is not None
+    assert result.stats["collapses"] > 0
+
+
+def test_canny_texture_shows_its_borders_and_penalised_edges(bunny_textured):
+    method = registry("method").load("canny-texture")()
+    result = run_method(method, bunny_textured, 2000)
+    (image,) = result.artifacts.values()
+    assert image.dtype == np.uint8 and image.shape == (1024, 1024, 3)
+    red = (image[..., 0] > 200) & (image[..., 1] < 80)
+    assert red.sum() > 0  # penalised edges drawn
+    assert result.stats["crossing_edges_before"] == 249
+
+
+def test_canny_texture_needs_a_texture():
+    from bench.models import resolve_model
+
+    method = registry("method").load("canny-texture")()
+    tiny = resolve_model("bunny-textured").replace(texture=None)
+    with pytest.raises(InputError, match="needs a texture"):
+        method.simplify(tiny, 100)
