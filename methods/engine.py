@@ -64,7 +64,7 @@ from numba import njit
 
 from bench.mesh import Mesh
 from methods.canny import _walk
-from methods.memoryless_math import lt_cost, lt_placement
+from methods.memoryless_math import lt_cost, lt_placement, r5_texture_coordinates, texture_kappa
 
 __all__ = ["Policy", "EngineResult", "simplify_mesh", "PLACEMENTS", "STOP_REASONS",
            "face_quadrics", "initial_quadrics", "quadric_error"]
@@ -107,6 +107,10 @@ class Policy:
         Degrees a surviving face's normal may turn in one collapse.
     boundary_lock : bool
         Keep boundary vertices fixed.
+    r5_uv : bool
+        With ``memoryless`` placement, new UVs by the R^5 oriented volumes of Lindstrom
+        & Turk 2000 §4.1.1, per texture patch (κ per patch); otherwise UVs of merged
+        wedges are interpolated along the collapsed edge.
     seam_rule : bool
         Seam vertices move only along their seam (see ``_evaluate``), so every UV chart
         survives; without it seams stay closed but may drift across charts.
@@ -120,6 +124,7 @@ class Policy:
     max_normal_rotation: float = 90.0
     boundary_lock: bool = False
     seam_rule: bool = True
+    r5_uv: bool = True
 
     def __post_init__(self):
         if self.placement not in PLACEMENTS:
@@ -672,8 +677,84 @@ def _cost_at(p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bn
 # -- one collapse -------------------------------------------------------------------------
 
 @njit(cache=True)
+def _mapped(w, wmap_from, wmap_to, npairs):
+    for i in range(npairs):
+        if wmap_from[i] == w:
+            return wmap_to[i]
+    return w
+
+
+@njit(cache=True)
+def _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from, wmap_to,
+               npairs, t_edge, r5ws):
+    """New UVs of every wedge around the merged vertex by Lindstrom & Turk 2000's R^5
+    oriented volumes (§4.1.1), each from the triangles of its own texture patch around
+    the edge (the removed ones included); a wedge whose patch profile is degenerate
+    falls back to interpolation along the edge."""
+    tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, targets, new_uv = r5ws
+    cap = tri_a.shape[0]
+    nt = 0
+    for side in range(2):
+        x = u if side == 0 else v
+        c = vhead[x]
+        while c != -1:
+            f = c // 3
+            if falive[f]:
+                w = _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs)
+                seen = False
+                for i in range(nt):
+                    if targets[i] == w:
+                        seen = True
+                if not seen and nt < targets.shape[0]:
+                    targets[nt] = w
+                    nt += 1
+            c = cnext[c]
+    for ti in range(nt):
+        t = targets[ti]
+        n = 0
+        kappa = 1.0
+        for side in range(2):
+            x = u if side == 0 else v
+            c = vhead[x]
+            while c != -1:
+                f = c // 3
+                on_edge = (F[f, 0] == u or F[f, 1] == u or F[f, 2] == u) and \
+                          (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v)
+                if falive[f] and not (side == 1 and on_edge) and n < cap and \
+                        _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs) == t:
+                    for d in range(3):
+                        tri_a[n, d] = P[F[f, 0], d]
+                        tri_b[n, d] = P[F[f, 1], d]
+                        tri_c[n, d] = P[F[f, 2], d]
+                    for d in range(2):
+                        uv_a[n, d] = uv[FW[f, 0], d]
+                        uv_b[n, d] = uv[FW[f, 1], d]
+                        uv_c[n, d] = uv[FW[f, 2], d]
+                    kappa = face_kappa[f]
+                    n += 1
+                c = cnext[c]
+        res, ok = r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n, kappa,
+                                         LT_ALPHA_DEG)
+        if n > 0 and ok:
+            new_uv[ti, 0] = res[0]
+            new_uv[ti, 1] = res[1]
+        else:  # interpolate along the edge when t is a merged pair, else keep
+            new_uv[ti, 0] = uv[t, 0]
+            new_uv[ti, 1] = uv[t, 1]
+            for i in range(npairs):
+                if wmap_to[i] == t:
+                    a = wmap_from[i]
+                    new_uv[ti, 0] = (1.0 - t_edge) * uv[a, 0] + t_edge * uv[t, 0]
+                    new_uv[ti, 1] = (1.0 - t_edge) * uv[a, 1] + t_edge * uv[t, 1]
+    for ti in range(nt):
+        uv[targets[ti], 0] = new_uv[ti, 0]
+        uv[targets[ti], 1] = new_uv[ti, 1]
+
+
+@njit(cache=True)
 def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv,
-              has_uv, efaces, wmap_from, wmap_to, log_changed, n_changed):
+              has_uv, efaces, wmap_from, wmap_to, log_changed, n_changed, use_r5, face_kappa,
+              r5ws):
     """Merge u into v at p. Returns (faces removed, changed count) and fills efaces with
     the removed faces."""
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
@@ -699,7 +780,10 @@ def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, 
     if el2 > 0.0:
         t = ((p[0] - P[u, 0]) * e[0] + (p[1] - P[u, 1]) * e[1] + (p[2] - P[u, 2]) * e[2]) / el2
         t = min(1.0, max(0.0, t))
-    if has_uv:
+    if has_uv and use_r5:
+        _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from,
+                   wmap_to, npairs, t, r5ws)
+    elif has_uv:
         for i in range(npairs):
             a, b = wmap_from[i], wmap_to[i]
             uv[b, 0] = (1.0 - t) * uv[a, 0] + t * uv[b, 0]
@@ -750,7 +834,7 @@ def _push(heap, cost, a, b, sa, sb):
 def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
          target,
          placement, weights, cos_limit, boundary_lock, seam_rule, verify, max_collapses,
-         borders, inv_area, moved):
+         borders, inv_area, moved, use_r5, face_kappa):
     nv = P.shape[0]
     mark = np.zeros(nv, np.int64)
     tick = np.zeros(1, np.int64)
@@ -765,6 +849,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     cap = 256  # triangles around an edge; a larger profile falls back to the quadric
     ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)),
           np.empty((cap, 3)), np.empty((cap, 3)))
+    r5ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 2)),
+            np.empty((cap, 2)), np.empty((cap, 2)), np.empty(64, np.int64), np.empty((64, 2)))
     rejects = np.zeros(_N_REJECTIONS, np.int64)
     log_removed = np.empty(max_collapses, np.int32)
     log_kept = np.empty(max_collapses, np.int32)
@@ -867,7 +953,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             moved[v] = True
         removed, n_changed = _collapse(u, v, p.copy(), P, Q, F, FW, falive, vhead, cnext,
                                        valive, wedge_vertex, uv, has_uv, efaces, wmap_from,
-                                       wmap_to, log_changed, n_changed)
+                                       wmap_to, log_changed, n_changed, use_r5, face_kappa,
+                                       r5ws)
         for i in range(min(removed, 2)):
             log_faces[n, i] = efaces[i]
         n += 1
@@ -979,6 +1066,23 @@ def initial_quadrics(P: np.ndarray, F: np.ndarray, boundary_corners: np.ndarray,
     return Q
 
 
+def _face_kappa(P, F, FW, uv) -> np.ndarray:
+    """(m,) the texture scale κ of each face's texture patch (Lindstrom & Turk 2000
+    §4.1.1); a patch is a set of faces connected through shared wedges."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    m = len(F)
+    n_w = int(FW.max()) + 1
+    rows = np.repeat(np.arange(m), 3)
+    graph = coo_matrix((np.ones(3 * m), (rows, m + FW.reshape(-1))), shape=(m + n_w, m + n_w))
+    _, labels = connected_components(graph, directed=False)
+    patch_of_face = np.unique(labels[:m], return_inverse=True)[1].reshape(-1)
+    n_patches = int(patch_of_face.max()) + 1
+    kappa = texture_kappa(P, F, uv[FW], patch_of_face, n_patches)
+    return kappa[patch_of_face]
+
+
 def vboundary_of(w, nv: int) -> np.ndarray:
     """(nv,) bool: welded vertices on a boundary edge."""
     flags = np.zeros(nv, bool)
@@ -1045,6 +1149,8 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
 
     Q = initial_quadrics(P, F, _boundary_corners(mesh), policy.boundary_weight)
 
+    use_r5 = bool(policy.r5_uv and has_uv and policy.placement == "memoryless")
+    face_kappa = _face_kappa(P, F, FW, uv) if use_r5 else np.ones(1)
     cos_limit = math.cos(math.radians(policy.max_normal_rotation))
     weights = np.array([policy.quadric_weight, policy.memoryless_weight, policy.canny_weight],
                        np.float64)
@@ -1052,7 +1158,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
                uv, has_uv, int(target_faces), PLACEMENTS[policy.placement], weights, cos_limit,
                bool(policy.boundary_lock),
                bool(policy.seam_rule and mesh.n_vertices != w.n_vertices), bool(verify),
-               max(1, nv), borders_arr, inv_area, moved)
+               max(1, nv), borders_arr, inv_area, moved, use_r5, face_kappa)
     P = np.where(moved[:, None], P * scale + lo, P0)
     (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
      log_faces, log_start, log_changed) = out

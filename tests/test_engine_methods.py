@@ -38,3 +38,20 @@ def test_canny_texture_needs_a_texture():
     tiny = resolve_model("bunny-textured").replace(texture=None)
     with pytest.raises(InputError, match="needs a texture"):
         method.simplify(tiny, 100)
+
+
+def test_memoryless_r5_keeps_an_affine_texture_map_exact():
+    """On a flat grid whose UVs are an affine function of position, the R^5 texture
+    coordinates of every surviving vertex stay that function of its new position."""
+    from bench.mesh import Mesh
+    from methods.engine import simplify_mesh
+    from methods.memoryless import Memoryless
+    from test_engine import grid
+
+    positions, faces = grid(8, z=lambda x, y: 0.0 * x)
+    affine = lambda p: np.column_stack([0.2 + 0.5 * p[:, 0] + 0.1 * p[:, 1],
+                                        0.1 - 0.2 * p[:, 0] + 0.6 * p[:, 1]])
+    mesh = Mesh(positions, faces, uv=affine(positions))
+    out = simplify_mesh(mesh, 20, Memoryless().policy()).mesh
+    assert out.n_faces <= 20
+    np.testing.assert_allclose(out.uv, affine(out.positions), atol=1e-9)
