@@ -9,9 +9,10 @@ triangle shape, added as linear constraints while they are α-compatible
 (:mod:`methods.memoryless_math`). The cost is the same volume and boundary error at the
 chosen point.
 
-UVs and other wedge attributes are carried by the engine (interpolated along the
-collapsed edge); the R^5 texture coordinates of §4.1.1 are implemented in
-:func:`methods.memoryless_math.r5_texture_coordinates` but not yet used by the engine.
+New texture coordinates come from the R^5 oriented volumes of Lindstrom & Turk 2000,
+§4.1.1 (:func:`methods.memoryless_math.r5_texture_coordinates`), computed for every
+wedge around the merged vertex from the triangles of its own texture patch, with κ per
+patch; a degenerate patch profile falls back to interpolation along the edge.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ __all__ = ["Memoryless"]
 
 class Memoryless(Method):
     name = "memoryless"
-    version = "1"
+    version = "2"  # 2: R^5 texture coordinates
     summary = "Lindstrom-Turk 98/99 volume and boundary preserving collapses (own engine)"
     reference = ("Lindstrom & Turk, Fast and memory efficient polygonal simplification, "
                  "IEEE Visualization 1998")
