@@ -107,6 +107,9 @@ class Policy:
         Degrees a surviving face's normal may turn in one collapse.
     boundary_lock : bool
         Keep boundary vertices fixed.
+    texture_weight : float
+        > 0: the quadric term uses Garland & Heckbert 1998 wedge quadrics over position
+        and ``texture_weight`` × UV (meshes with UVs only); new UVs minimise them.
     r5_uv : bool
         With ``memoryless`` placement, new UVs by the R^5 oriented volumes of Lindstrom
         & Turk 2000 §4.1.1, per texture patch (κ per patch); otherwise UVs of merged
@@ -125,6 +128,7 @@ class Policy:
     boundary_lock: bool = False
     seam_rule: bool = True
     r5_uv: bool = True
+    texture_weight: float = 0.0
 
     def __post_init__(self):
         if self.placement not in PLACEMENTS:
@@ -564,8 +568,118 @@ def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
 
 
 @njit(cache=True)
+def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
+    """Pairs (wedge of u -> wedge of v) across the faces of edge (u, v): each side of
+    the edge merges its own two wedges. Returns the number of pairs."""
+    k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
+    npairs = 0
+    for i in range(min(k, efaces.shape[0])):
+        f = efaces[i]
+        wu = -1
+        wv = -1
+        for j in range(3):
+            if F[f, j] == u:
+                wu = FW[f, j]
+            elif F[f, j] == v:
+                wv = FW[f, j]
+        if wu != wv and npairs < wmap_from.shape[0]:
+            wmap_from[npairs] = wu
+            wmap_to[npairs] = wv
+            npairs += 1
+    return npairs
+
+
+@njit(cache=True)
+def _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets):
+    """The distinct wedges the merged vertex will have (after pairing); returns count."""
+    nt = 0
+    for side in range(2):
+        x = u if side == 0 else v
+        c = vhead[x]
+        while c != -1:
+            f = c // 3
+            if falive[f]:
+                w = _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs)
+                seen = False
+                for i in range(nt):
+                    if targets[i] == w:
+                        seen = True
+                if not seen and nt < targets.shape[0]:
+                    targets[nt] = w
+                    nt += 1
+            c = cnext[c]
+    return nt
+
+
+@njit(cache=True)
+def _group_quadric(t, WQ, wmap_from, wmap_to, npairs, out):
+    """The 5-D quadric (31 floats: A 5x5, b 5, c) of wedge t and the wedges merging
+    into it."""
+    for i in range(31):
+        out[i] = WQ[t, i]
+    for i in range(npairs):
+        if wmap_to[i] == t:
+            for j in range(31):
+                out[j] += WQ[wmap_from[i], j]
+
+
+@njit(cache=True)
+def _uv_minimiser(g, p, uv_now, out):
+    """The (u, v) minimising the 5-D quadric g at position p: -A_uu^-1 (A_up p + b_u).
+    Returns False (and writes uv_now) when A_uu is singular."""
+    a00, a01, a11 = g[3 * 5 + 3], g[3 * 5 + 4], g[4 * 5 + 4]
+    det = a00 * a11 - a01 * a01
+    if abs(det) <= 1e-12 * (abs(a00) + abs(a11)) ** 2 or det == 0.0:
+        out[0] = uv_now[0]
+        out[1] = uv_now[1]
+        return False
+    r0 = g[25 + 3]
+    r1 = g[25 + 4]
+    for k in range(3):
+        r0 += g[3 * 5 + k] * p[k]
+        r1 += g[4 * 5 + k] * p[k]
+    out[0] = -(a11 * r0 - a01 * r1) / det
+    out[1] = -(-a01 * r0 + a00 * r1) / det
+    return True
+
+
+@njit(cache=True)
+def _add_reduced(g, uv_now, qsum):
+    """Add to the 3-D quadric qsum the 5-D quadric g minimised over (u, v) (the Schur
+    complement), or with (u, v) fixed at uv_now when A_uu is singular."""
+    a00, a01, a11 = g[18], g[19], g[24]
+    det = a00 * a11 - a01 * a01
+    idx = (0, 1, 2, 4, 5, 7)
+    rows = (0, 0, 0, 1, 1, 2)
+    cols = (0, 1, 2, 1, 2, 2)
+    if abs(det) <= 1e-12 * (abs(a00) + abs(a11)) ** 2 or det == 0.0:
+        u0, u1 = uv_now[0], uv_now[1]
+        for n in range(6):
+            qsum[idx[n]] += g[rows[n] * 5 + cols[n]]
+        for k in range(3):  # b'_k = b_k + A_k3 u0 + A_k4 u1
+            qsum[(3, 6, 8)[k]] += g[25 + k] + g[k * 5 + 3] * u0 + g[k * 5 + 4] * u1
+        qsum[9] += (g[30] + 2.0 * (g[28] * u0 + g[29] * u1)
+                    + a00 * u0 * u0 + 2.0 * a01 * u0 * u1 + a11 * u1 * u1)
+        return
+    i00, i01, i11 = a11 / det, -a01 / det, a00 / det  # A_uu^-1
+    # M = A_pu A_uu^-1 (3x2)
+    for n in range(6):
+        r, c = rows[n], cols[n]
+        m0 = g[r * 5 + 3] * i00 + g[r * 5 + 4] * i01
+        m1 = g[r * 5 + 3] * i01 + g[r * 5 + 4] * i11
+        qsum[idx[n]] += g[r * 5 + c] - (m0 * g[3 * 5 + c] + m1 * g[4 * 5 + c])
+    bu0, bu1 = g[28], g[29]
+    for k in range(3):
+        m0 = g[k * 5 + 3] * i00 + g[k * 5 + 4] * i01
+        m1 = g[k * 5 + 3] * i01 + g[k * 5 + 4] * i11
+        qsum[(3, 6, 8)[k]] += g[25 + k] - (m0 * bu0 + m1 * bu1)
+    qsum[9] += g[30] - (bu0 * (i00 * bu0 + i01 * bu1) + bu1 * (i01 * bu0 + i11 * bu1))
+
+
+@njit(cache=True)
 def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, tick, ws,
-              placement, weights, seam_rule, qsum, out_p, uv, borders, inv_area, no_record):
+              placement, weights, seam_rule, qsum, out_p, uv, borders, inv_area, no_record,
+              WQ, tws):
     """Cost of collapsing edge (a, b) and where the kept vertex goes.
 
     ``weights`` = (quadric, memoryless, canny) cost-term weights; ``ws`` = the Lindstrom–Turk
@@ -582,6 +696,13 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
     w_q, w_lt = weights[0], weights[1]
     for i in range(10):
         qsum[i] = Q[a, i] + Q[b, i]
+    if WQ.shape[0] > 1:  # Garland-Heckbert 1998: wedge quadrics over (x, y, z, u, v)
+        gfrom, gto, targets, g = tws
+        npairs = _wedge_pairs(a, b, F, FW, vhead, cnext, falive, efaces, gfrom, gto)
+        nt = _wedge_targets(a, b, FW, vhead, cnext, falive, gfrom, gto, npairs, targets)
+        for i in range(nt):
+            _group_quadric(targets[i], WQ, gfrom, gto, npairs, g)
+            _add_reduced(g, uv[targets[i]], qsum)
     forced = -1  # the vertex that must be kept, at its own position
     if seam_rule:
         sa = _is_seam_vertex(a, FW, vhead, cnext, falive)
@@ -754,25 +875,12 @@ def _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fro
 @njit(cache=True)
 def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv,
               has_uv, efaces, wmap_from, wmap_to, log_changed, n_changed, use_r5, face_kappa,
-              r5ws):
+              r5ws, WQ, tws):
     """Merge u into v at p. Returns (faces removed, changed count) and fills efaces with
     the removed faces."""
-    k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     # Pair the wedges of u and v across each removed face (same side of the edge).
-    npairs = 0
-    for i in range(k):
-        f = efaces[i]
-        wu = -1
-        wv = -1
-        for j in range(3):
-            if F[f, j] == u:
-                wu = FW[f, j]
-            elif F[f, j] == v:
-                wv = FW[f, j]
-        if wu != wv:
-            wmap_from[npairs] = wu
-            wmap_to[npairs] = wv
-            npairs += 1
+    npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to)
+    k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     # Interpolation parameter of p along the edge, for merged attributes.
     e = P[v] - P[u]
     el2 = e[0] ** 2 + e[1] ** 2 + e[2] ** 2
@@ -780,7 +888,19 @@ def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, 
     if el2 > 0.0:
         t = ((p[0] - P[u, 0]) * e[0] + (p[1] - P[u, 1]) * e[1] + (p[2] - P[u, 2]) * e[2]) / el2
         t = min(1.0, max(0.0, t))
-    if has_uv and use_r5:
+    if has_uv and WQ.shape[0] > 1:  # Garland-Heckbert 1998: merge, then minimise UVs
+        targets, g = tws[2], tws[3]
+        nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs,
+                            targets)
+        for i in range(npairs):
+            for j in range(31):
+                WQ[wmap_to[i], j] += WQ[wmap_from[i], j]
+        best = np.empty(2)
+        for i in range(nt):
+            _uv_minimiser(WQ[targets[i]], p, uv[targets[i]], best)
+            uv[targets[i], 0] = best[0]
+            uv[targets[i], 1] = best[1]
+    elif has_uv and use_r5:
         _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from,
                    wmap_to, npairs, t, r5ws)
     elif has_uv:
@@ -834,7 +954,7 @@ def _push(heap, cost, a, b, sa, sb):
 def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
          target,
          placement, weights, cos_limit, boundary_lock, seam_rule, verify, max_collapses,
-         borders, inv_area, moved, use_r5, face_kappa):
+         borders, inv_area, moved, use_r5, face_kappa, WQ):
     nv = P.shape[0]
     mark = np.zeros(nv, np.int64)
     tick = np.zeros(1, np.int64)
@@ -849,6 +969,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     cap = 256  # triangles around an edge; a larger profile falls back to the quadric
     ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)),
           np.empty((cap, 3)), np.empty((cap, 3)))
+    tws = (np.empty(8, np.int64), np.empty(8, np.int64), np.empty(64, np.int64), np.empty(31))
     r5ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 2)),
             np.empty((cap, 2)), np.empty((cap, 2)), np.empty(64, np.int64), np.empty((64, 2)))
     rejects = np.zeros(_N_REJECTIONS, np.int64)
@@ -883,7 +1004,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
                 cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                        efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
-                                       no_record)
+                                       no_record, WQ, tws)
                 evaluations += 1
                 _push(heap, cost, a, b, 0, 0)
 
@@ -908,7 +1029,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                 continue
             cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                        efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
-                                       no_record)
+                                       no_record, WQ, tws)
             evaluations += 1
             _push(heap, cost, a, b, stamp[a], stamp[b])
             continue
@@ -916,7 +1037,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             continue
         fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                        efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
-                                       no_record)
+                                       no_record, WQ, tws)
         evaluations += 1
         if verify and abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
             mismatches += 1
@@ -954,7 +1075,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
         removed, n_changed = _collapse(u, v, p.copy(), P, Q, F, FW, falive, vhead, cnext,
                                        valive, wedge_vertex, uv, has_uv, efaces, wmap_from,
                                        wmap_to, log_changed, n_changed, use_r5, face_kappa,
-                                       r5ws)
+                                       r5ws, WQ, tws)
         for i in range(min(removed, 2)):
             log_faces[n, i] = efaces[i]
         n += 1
@@ -987,7 +1108,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                 continue
             c2, k2 = _evaluate(v, w, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                efaces, mark, tick, ws, placement, weights, seam_rule, qsum,
-                               p, uv, borders, inv_area, no_record)
+                               p, uv, borders, inv_area, no_record, WQ, tws)
             evaluations += 1
             _push(heap, c2, v, w, stamp[v], stamp[w])
         # The apexes of the removed faces lost a face, which can change whether they are
@@ -1008,7 +1129,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                         continue
                     c2, k2 = _evaluate(x, y, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                        efaces, mark, tick, ws, placement, weights, seam_rule,
-                                       qsum, p, uv, borders, inv_area, no_record)
+                                       qsum, p, uv, borders, inv_area, no_record, WQ,
+                                       tws)
                     evaluations += 1
                     _push(heap, c2, x, y, stamp[x], stamp[y])
     if faces <= target:
@@ -1048,7 +1170,7 @@ def _boundary_corners(mesh: Mesh) -> np.ndarray:
 
 
 def initial_quadrics(P: np.ndarray, F: np.ndarray, boundary_corners: np.ndarray,
-                     boundary_weight: float) -> np.ndarray:
+                     boundary_weight: float, faces: bool = True) -> np.ndarray:
     """Per welded vertex (nv, 10): face planes plus boundary planes (see face_quadrics).
 
     Parameters
@@ -1058,9 +1180,12 @@ def initial_quadrics(P: np.ndarray, F: np.ndarray, boundary_corners: np.ndarray,
     boundary_corners : ndarray of shape (m, 3) bool
         Corner k of face f starts a boundary edge (see _boundary_corners).
     boundary_weight : float
+    faces : bool
+        Include the face planes (False when wedge quadrics over position and texture
+        coordinates carry them, see :func:`wedge_quadrics`).
     """
     alive = np.ones(len(F), bool)
-    Q = face_quadrics(P, F, alive)
+    Q = face_quadrics(P, F, alive) if faces else np.zeros((len(P), 10))
     if boundary_weight > 0:
         _add_boundary_quadrics(Q, P, F, alive, boundary_corners, boundary_weight)
     return Q
@@ -1081,6 +1206,59 @@ def _face_kappa(P, F, FW, uv) -> np.ndarray:
     n_patches = int(patch_of_face.max()) + 1
     kappa = texture_kappa(P, F, uv[FW], patch_of_face, n_patches)
     return kappa[patch_of_face]
+
+
+def wedge_quadrics(P: np.ndarray, F: np.ndarray, FW: np.ndarray, uv: np.ndarray,
+                   texture_weight: float) -> np.ndarray:
+    """Garland & Heckbert 1998 quadrics over (x, y, z, w·u, w·v), one per wedge.
+
+    Each face's corners, lifted to R^5 with its own wedges' UVs, span a plane; the
+    quadric of a point X is its squared distance to that plane, ||X - p||² minus the
+    squared projections on the plane's orthonormal basis e1, e2 (GH98 §3.2), weighted
+    by the face's area and added to the face's three wedges. So a seam vertex has one
+    quadric per side. Layout per row: A (5x5, row-major), b (5), c.
+
+    Parameters
+    ----------
+    P : ndarray of shape (nv, 3)
+    F, FW : ndarray of shape (m, 3) int
+        Welded faces and the wedge (render vertex) of each corner.
+    uv : ndarray of shape (n_wedges, 2)
+    texture_weight : float
+        Scale of texture coordinates against positions (unit-diagonal geometry), like
+        MeshLab's ``extratcoordw``.
+
+    Returns
+    -------
+    ndarray of shape (n_wedges, 31)
+        In plain (x, y, z, u, v): the weight is folded into the matrix.
+    """
+    X = np.concatenate([P[F], texture_weight * uv[FW]], axis=2)  # (m, 3, 5)
+    p, q, r = X[:, 0], X[:, 1], X[:, 2]
+    e1 = q - p
+    l1 = np.linalg.norm(e1, axis=1, keepdims=True)
+    e1 = np.divide(e1, l1, out=np.zeros_like(e1), where=l1 > 0)
+    e2 = r - p
+    e2 = e2 - np.sum(e2 * e1, axis=1, keepdims=True) * e1
+    l2 = np.linalg.norm(e2, axis=1, keepdims=True)
+    e2 = np.divide(e2, l2, out=np.zeros_like(e2), where=l2 > 0)
+    area = 0.5 * np.linalg.norm(np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]),
+                                axis=1)
+    pe1 = np.sum(p * e1, axis=1, keepdims=True)
+    pe2 = np.sum(p * e2, axis=1, keepdims=True)
+    A = (np.eye(5)[None] - e1[:, :, None] * e1[:, None, :] - e2[:, :, None] * e2[:, None, :])
+    b = pe1 * e1 + pe2 * e2 - p
+    c = np.sum(p * p, axis=1) - pe1[:, 0] ** 2 - pe2[:, 0] ** 2
+    # Express the quadric in plain (u, v): X = S (x, y, z, u, v) with S = diag(1,1,1,w,w),
+    # so A -> S A S and b -> S b; the minimising (u, v) are then the UVs themselves.
+    scale = np.array([1.0, 1.0, 1.0, texture_weight, texture_weight])
+    A = A * scale[None, :, None] * scale[None, None, :]
+    b = b * scale[None, :]
+    per_face = np.concatenate([A.reshape(-1, 25), b, c[:, None]], axis=1) * area[:, None]
+    WQ = np.zeros((int(FW.max()) + 1 if len(uv) <= FW.max() else len(uv), 31))
+    for corner in range(3):
+        np.add.at(WQ, FW[:, corner], per_face)
+    return WQ
 
 
 def vboundary_of(w, nv: int) -> np.ndarray:
@@ -1147,7 +1325,11 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
                                 axis=1).sum() / 2)
     inv_area = 1.0 / area if area > 0 else 0.0
 
-    Q = initial_quadrics(P, F, _boundary_corners(mesh), policy.boundary_weight)
+    texture_quadrics = policy.texture_weight > 0 and has_uv and policy.quadric_weight != 0
+    Q = initial_quadrics(P, F, _boundary_corners(mesh), policy.boundary_weight,
+                         faces=not texture_quadrics)
+    WQ = (wedge_quadrics(P, F, FW, uv, policy.texture_weight) if texture_quadrics
+          else np.zeros((1, 31)))
 
     use_r5 = bool(policy.r5_uv and has_uv and policy.placement == "memoryless")
     face_kappa = _face_kappa(P, F, FW, uv) if use_r5 else np.ones(1)
@@ -1158,7 +1340,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
                uv, has_uv, int(target_faces), PLACEMENTS[policy.placement], weights, cos_limit,
                bool(policy.boundary_lock),
                bool(policy.seam_rule and mesh.n_vertices != w.n_vertices), bool(verify),
-               max(1, nv), borders_arr, inv_area, moved, use_r5, face_kappa)
+               max(1, nv), borders_arr, inv_area, moved, use_r5, face_kappa, WQ)
     P = np.where(moved[:, None], P * scale + lo, P0)
     (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
      log_faces, log_start, log_changed) = out

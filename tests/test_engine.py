@@ -271,3 +271,58 @@ def test_corner_lists_link_every_corner_once():
             corners.append(c)
             c = cnext[c]
         assert sorted(corners) == sorted(np.flatnonzero(F.reshape(-1) == v).tolist())
+
+
+# -- Garland-Heckbert 1998 wedge quadrics --------------------------------------------------
+
+def test_wedge_quadric_is_area_times_squared_distance_to_the_lifted_plane():
+    from methods.engine import wedge_quadrics
+
+    rng = np.random.default_rng(11)
+    P = rng.normal(size=(3, 3))
+    uv = rng.uniform(size=(3, 2))
+    F = np.array([[0, 1, 2]])
+    WQ = wedge_quadrics(P, F, F, uv, 0.7)
+    corners = np.column_stack([P, 0.7 * uv])  # (3, 5)
+    basis = np.linalg.qr((corners[1:] - corners[0]).T)[0]  # orthonormal (5, 2)
+    area = 0.5 * np.linalg.norm(np.cross(P[1] - P[0], P[2] - P[0]))
+    for _ in range(5):
+        x = rng.normal(size=5)
+        d = x - corners[0]
+        dist2 = d @ d - np.sum((basis.T @ d) ** 2)
+        A, b, c = WQ[0, :25].reshape(5, 5), WQ[0, 25:30], WQ[0, 30]
+        y = x / np.array([1, 1, 1, 0.7, 0.7])  # the quadric takes plain (x, y, z, u, v)
+        assert np.isclose(y @ A @ y + 2 * b @ y + c, area * dist2, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(WQ[0], WQ[1])  # each corner's wedge gets the face's quadric
+
+
+def test_reduced_wedge_quadric_is_the_minimum_over_uv():
+    from methods.engine import _add_reduced, _uv_minimiser
+
+    rng = np.random.default_rng(12)
+    M = rng.normal(size=(6, 6))
+    H = M @ M.T  # positive definite over (x, y, z, u, v, 1)
+    g = np.concatenate([H[:5, :5].reshape(-1), H[:5, 5], [H[5, 5]]])
+    qsum = np.zeros(10)
+    _add_reduced(g, np.zeros(2), qsum)
+    p = rng.normal(size=3)
+    best = np.empty(2)
+    assert _uv_minimiser(g, p, np.zeros(2), best)
+    x = np.concatenate([p, best, [1.0]])
+    np.testing.assert_allclose(quadric_error(qsum, p), x @ H @ x, rtol=1e-9)
+    for _ in range(20):  # and no other (u, v) does better
+        y = np.concatenate([p, best + rng.normal(scale=0.1, size=2), [1.0]])
+        assert y @ H @ y >= x @ H @ x - 1e-12
+
+
+def test_texture_quadrics_keep_an_affine_texture_map_exact():
+    """A flat, jittered grid whose UVs are affine in position has zero 5-D quadric error
+    at the true UVs, so the UVs chosen by the wedge quadrics must be exact."""
+    positions, faces = grid(8)
+    inner = np.all((positions[:, :2] > 0) & (positions[:, :2] < 1), axis=1)
+    positions[inner, :2] += np.random.default_rng(0).uniform(-0.04, 0.04, (inner.sum(), 2))
+    affine = lambda p: np.column_stack([0.2 + 0.5 * p[:, 0] + 0.1 * p[:, 1],
+                                        0.1 - 0.2 * p[:, 0] + 0.6 * p[:, 1]])
+    mesh = Mesh(positions, faces, uv=affine(positions))
+    out = simplify_mesh(mesh, 40, Policy(texture_weight=1.0)).mesh
+    np.testing.assert_allclose(out.uv, affine(out.positions), atol=1e-9)
