@@ -6,7 +6,7 @@ sigma 0.75, thresholds 0.5 / 0.6 of the maximum gradient magnitude, MATLAB's
 convention). While simplifying, an edge whose UV segment crosses a border pixel, in
 any of its faces' UV charts, costs extra: the area of its faces over the mesh's total
 area, on geometry normalised to a unit bounding-box diagonal. The base cost is the
-quadric (default) or the memoryless cost; ``canny_weight`` scales the penalty (the
+quadric of ``quadric`` (with its texture quadrics, default) or the memoryless cost; ``canny_weight`` scales the penalty (the
 paper adds it with weight 1).
 """
 
@@ -25,7 +25,7 @@ __all__ = ["CannyTexture", "crossing_share"]
 
 class CannyTexture(Method):
     name = "canny-texture"
-    version = "1"
+    version = "2"  # 2: the quadric base uses texture quadrics, as ``quadric`` does
     summary = "quadric (or memoryless) cost + Canny texture-border penalty (own engine)"
     reference = ("González, Castelló & Chover, A texture-based metric extension for "
                  "simplification methods, GRAPP 2007")
@@ -40,6 +40,7 @@ class CannyTexture(Method):
         low: float = 0.5
         high: float = 0.6
         max_normal_rotation: float = 90.0
+        texture_weight: float = 1.0  # of the quadric base, as in ``quadric``
 
     def policy(self) -> Policy:
         p = self.params
@@ -47,7 +48,8 @@ class CannyTexture(Method):
             return Policy(placement="memoryless", quadric_weight=0.0, memoryless_weight=1.0,
                           boundary_weight=0.0, canny_weight=p.canny_weight,
                           max_normal_rotation=p.max_normal_rotation)
-        return Policy(canny_weight=p.canny_weight, max_normal_rotation=p.max_normal_rotation)
+        return Policy(canny_weight=p.canny_weight, max_normal_rotation=p.max_normal_rotation,
+                      texture_weight=p.texture_weight)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         from methods.canny import texture_borders
