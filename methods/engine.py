@@ -369,6 +369,14 @@ def _normal(pa, pb, pc):
     return np.cross(pb - pa, pc - pa)
 
 
+@njit(cache=True)
+def _normal3(ax, ay, az, bx, by, bz, cx, cy, cz):
+    """(b - a) x (c - a) from scalars: no temporary arrays in the hot loop."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    vx, vy, vz = cx - ax, cy - ay, cz - az
+    return uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+
+
 # -- validity -------------------------------------------------------------------------------
 
 @njit(cache=True)
@@ -423,19 +431,23 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
                         c2 = cnext[c2]
                 # fold-over: the face with x moved to p
                 i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
-                before = _normal(P[i0], P[i1], P[i2])
-                q0 = p if i0 == x else P[i0]
-                q1 = p if i1 == x else P[i1]
-                q2 = p if i2 == x else P[i2]
-                after = _normal(q0, q1, q2)
-                lb = math.sqrt(before[0] ** 2 + before[1] ** 2 + before[2] ** 2)
-                la = math.sqrt(after[0] ** 2 + after[1] ** 2 + after[2] ** 2)
+                b0, b1, b2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], P[i1, 0], P[i1, 1],
+                                      P[i1, 2], P[i2, 0], P[i2, 1], P[i2, 2])
+                if i0 == x:  # the same triangle with x moved to p
+                    a0, a1, a2 = _normal3(p[0], p[1], p[2], P[i1, 0], P[i1, 1], P[i1, 2],
+                                          P[i2, 0], P[i2, 1], P[i2, 2])
+                elif i1 == x:
+                    a0, a1, a2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], p[0], p[1], p[2],
+                                          P[i2, 0], P[i2, 1], P[i2, 2])
+                else:
+                    a0, a1, a2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], P[i1, 0], P[i1, 1],
+                                          P[i1, 2], p[0], p[1], p[2])
+                lb = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
+                la = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
                 if la <= 1e-12 * lb or la == 0.0:
                     return 4
                 if lb > 0.0:
-                    cosang = (before[0] * after[0] + before[1] * after[1]
-                              + before[2] * after[2]) / (la * lb)
-                    if cosang < cos_limit:
+                    if (b0 * a0 + b1 * a1 + b2 * a2) / (la * lb) < cos_limit:
                         return 4
             c = cnext[c]
     return 0
@@ -717,8 +729,7 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
             forced = b
     tri_a, tri_b, tri_c, bnd_a, bnd_b, link = ws
     n_tris = n_bnd = n_link = 0
-    e = P[a] - P[b]
-    l2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+    l2 = ((P[a, 0] - P[b, 0]) ** 2 + (P[a, 1] - P[b, 1]) ** 2 + (P[a, 2] - P[b, 2]) ** 2)
     if w_lt != 0.0 or placement == 3:
         n_tris, n_bnd, n_link = _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary,
                                                 efaces, mark, tick, tri_a, tri_b, tri_c, bnd_a,
