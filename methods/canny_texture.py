@@ -25,7 +25,7 @@ __all__ = ["CannyTexture", "crossing_share"]
 
 class CannyTexture(Method):
     name = "canny-texture"
-    version = "2"  # 2: the quadric base uses texture quadrics, as ``quadric`` does
+    version = "3"  # 2: quadric base with texture quadrics; 3: superseded entries dropped
     summary = "quadric (or memoryless) cost + Canny texture-border penalty (own engine)"
     reference = ("González, Castelló & Chover, A texture-based metric extension for "
                  "simplification methods, GRAPP 2007")

@@ -970,6 +970,10 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     mark = np.zeros(nv, np.int64)
     tick = np.zeros(1, np.int64)
     stamp = np.zeros(nv, np.int64)
+    # pushed_at[x]: x's stamp when entries for all of its edges were last pushed. An entry
+    # older than that on either end has a newer one in the heap (every edge created
+    # since then was pushed fresh by the collapse that made it), so it can be dropped.
+    pushed_at = np.zeros(nv, np.int64)
     nbr_u = np.empty(nv, np.int64)
     nbr_v = np.empty_like(nbr_u)
     efaces = np.empty(8, np.int64)
@@ -1033,8 +1037,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
         if not valive[a] or not valive[b]:
             continue
         if sa != stamp[a] or sb != stamp[b]:  # stale
-            if sa != -1 and not neighbourhood_cost:
-                continue  # superseded: fresh entries were pushed when the stamp changed
+            if sa != -1 and (sa < pushed_at[a] or sb < pushed_at[b]):
+                continue  # superseded: a newer entry for this edge was pushed since
             # re-cost lazily and push back
             if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
                 continue
@@ -1122,6 +1126,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                                p, uv, borders, inv_area, no_record, WQ, tws)
             evaluations += 1
             _push(heap, c2, v, w, stamp[v], stamp[w])
+        pushed_at[v] = stamp[v]
         # The apexes of the removed faces lost a face, which can change whether they are
         # seam vertices (and so the seam rule's verdict on their edges): give them fresh
         # entries too. (With neighbourhood costs they were stamped above and are
@@ -1144,6 +1149,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                                        tws)
                     evaluations += 1
                     _push(heap, c2, x, y, stamp[x], stamp[y])
+                pushed_at[x] = stamp[x]
     if faces <= target:
         stopped = 0
     return (stopped, n, evaluations, mismatches, rejects, log_removed[:n], log_kept[:n],

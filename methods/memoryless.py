@@ -28,7 +28,7 @@ __all__ = ["Memoryless"]
 
 class Memoryless(Method):
     name = "memoryless"
-    version = "2"  # 2: R^5 texture coordinates
+    version = "3"  # 2: R^5 texture coordinates; 3: superseded queue entries dropped
     summary = "Lindstrom-Turk 98/99 volume and boundary preserving collapses (own engine)"
     reference = ("Lindstrom & Turk, Fast and memory efficient polygonal simplification, "
                  "IEEE Visualization 1998")
