@@ -123,8 +123,9 @@ def run_method(method: Method, mesh: Mesh, target_faces: int, ctx: Any = None) -
     except BenchError:
         raise
     except Exception as exc:  # a backend failure: one line for the user, cause chained
+        lines = str(exc).strip().splitlines()
         raise MethodError(f"method '{method.name}' failed on {mesh.name}: "
-                          f"{type(exc).__name__}: {str(exc).strip().splitlines()[-1] if str(exc).strip() else ''}"
+                          f"{type(exc).__name__}: {lines[-1] if lines else ''}"
                           " (run with --debug for the traceback)") from exc
     result.stats.setdefault("wall_seconds", time.perf_counter() - wall)
     result.stats.setdefault("cpu_seconds", time.process_time() - cpu)

@@ -6,8 +6,8 @@ sigma 0.75, thresholds 0.5 / 0.6 of the maximum gradient magnitude, MATLAB's
 convention). While simplifying, an edge whose UV segment crosses a border pixel, in
 any of its faces' UV charts, costs extra: the area of its faces over the mesh's total
 area, on geometry normalised to a unit bounding-box diagonal. The base cost is the
-quadric of ``quadric`` (with its texture quadrics, default) or the memoryless cost; ``canny_weight`` scales the penalty (the
-paper adds it with weight 1).
+quadric of ``quadric`` (with its texture quadrics, default) or the memoryless cost;
+``canny_weight`` scales the penalty (the paper adds it with weight 1).
 """
 
 from __future__ import annotations

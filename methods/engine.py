@@ -1,12 +1,14 @@
 """The shared edge-collapse engine: welded topology, wedge attributes carried along,
 validity checks, a lazily re-evaluated priority queue, and a collapse log.
 
-Every method of the suite that removes edges runs on this engine. The pipeline, for a
-mesh and a face target::
+Every method of the suite that removes edges runs on this engine. The pipeline, in
+:func:`simplify_mesh`, for a mesh and a face target::
 
-    state = build_state(mesh)           # welded positions/faces, wedge per corner, quadrics
-    run_collapses(state, policy, ...)   # numba: pop, (re-)cost, check, collapse, log
-    result = extract(state)             # render vertices again, the collapse log
+    arrays at unit diagonal     welded positions/faces, wedge per corner, corner lists,
+                                quadrics (vertex planes, or per-wedge 5-D ones)
+    _run (numba)                push every edge; pop, re-cost if stale, check, collapse,
+                                stamp, push the kept vertex's edges; log each collapse
+    _extract                    render vertices again from the surviving wedges
 
 Policies are data, not callbacks (the Python layer never runs per collapse). A
 :class:`Policy` names a *placement* (where the surviving vertex goes) and a weighted sum
@@ -22,6 +24,16 @@ optimal       the quadric minimiser, falling back to the best of the endpoints a
 endpoints     half-edge collapse: both directions are tried, the cheaper is kept
 midpoint      the middle of the edge
 memoryless    Lindstrom & Turk 1998 constraints (methods.memoryless_math)
+============  =========================================================================
+
+============  =========================================================================
+cost term     what it measures
+============  =========================================================================
+quadric       Garland & Heckbert 1997 planes; with ``texture_weight`` > 0 on meshes with
+              UVs, their 1998 quadrics over (x, y, z, u, v), one per wedge
+memoryless    Lindstrom & Turk 1998 volume and boundary change at the new position
+canny         González et al. 2007: incident area / total area if the edge's UV segment
+              crosses a texture border
 ============  =========================================================================
 
 Topology rules (each rejection is counted and reported):
@@ -1018,8 +1030,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             a, b = F[f, j], F[f, (j + 1) % 3]
             if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
                 cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
-                                       no_record, WQ, tws)
+                                       efaces, mark, tick, ws, placement, weights, seam_rule,
+                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws)
                 evaluations += 1
                 _push(heap, cost, a, b, 0, 0)
 
@@ -1043,16 +1055,16 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
                 continue
             cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
-                                       no_record, WQ, tws)
+                                       efaces, mark, tick, ws, placement, weights, seam_rule,
+                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws)
             evaluations += 1
             _push(heap, cost, a, b, stamp[a], stamp[b])
             continue
         if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
             continue
         fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule, qsum, p, uv, borders, inv_area,
-                                       no_record, WQ, tws)
+                                       efaces, mark, tick, ws, placement, weights, seam_rule,
+                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws)
         evaluations += 1
         if verify and abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
             mismatches += 1
