@@ -1,0 +1,173 @@
+"""Tests for the CPU scan converter (methods.raster).
+
+The face-ID buffers are checked against a slow per-pixel NumPy reference on tiny scenes,
+coverage against an analytic sphere, and the shaded luminance against the evaluation
+renderer (metrics.render) with MSAA off.
+"""
+
+import numpy as np
+import pytest
+import trimesh
+
+from bench.mesh import Mesh
+from methods.raster import face_id_buffers, rasterize_luminance
+from metrics.views import Camera, cameras_for, dodecahedron_directions, protocol_cameras
+
+SIZE = 32
+EDGE_TOL = 1e-9
+
+
+# -- scenes -------------------------------------------------------------------------------
+
+def _tetrahedron():
+    positions = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], float) * 0.8
+    faces = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
+    return Mesh(positions, faces, name="tetrahedron")
+
+
+def _two_triangles():
+    """Two triangles that overlap on screen and cross in depth."""
+    positions = np.array([[-1.0, -0.8, 0.3], [0.9, -0.5, -0.4], [-0.2, 0.9, 0.1],
+                          [1.0, 0.8, 0.4], [-0.9, 0.4, -0.3], [0.3, -1.0, 0.0]])
+    return Mesh(positions, np.array([[0, 1, 2], [3, 4, 5]]), name="two triangles")
+
+
+def _cameras(mesh):
+    extra = Camera(eye=[0.4, -0.3, 3.0], target=[0.0, 0.0, 0.0], up=[0.0, 1.0, 0.0],
+                   near=1.0, far=5.0)
+    return [extra] + protocol_cameras(mesh)[::5]
+
+
+# -- the slow reference --------------------------------------------------------------------
+
+def _reference(mesh, camera, width, height):
+    """Face IDs by brute force: every pixel centre against every face, plus a mask of
+    pixel centres within EDGE_TOL of some projected edge (where ties may go either way)."""
+    mvp = camera.projection_matrix(width / height) @ camera.view_matrix()
+    clip = np.c_[mesh.positions, np.ones(mesh.n_vertices)] @ mvp.T
+    ndc = clip[:, :3] / clip[:, 3:]
+    sx = (ndc[:, 0] + 1.0) * width / 2.0
+    sy = (1.0 - ndc[:, 1]) * height / 2.0
+    ids = np.full((height, width), -1, np.int32)
+    near_edge = np.zeros((height, width), bool)
+    for r in range(height):
+        for c in range(width):
+            p = np.array([c + 0.5, r + 0.5])
+            best = np.inf
+            for f, tri in enumerate(mesh.faces):
+                a, b, d = (np.array([sx[i], sy[i]]) for i in tri)
+                for u, w in ((a, b), (b, d), (d, a)):
+                    t = np.clip(np.dot(p - u, w - u) / np.dot(w - u, w - u), 0.0, 1.0)
+                    if np.linalg.norm(p - (u + t * (w - u))) < EDGE_TOL:
+                        near_edge[r, c] = True
+                m = np.array([[b[0] - a[0], d[0] - a[0]], [b[1] - a[1], d[1] - a[1]]])
+                l1, l2 = np.linalg.solve(m, p - a)
+                lam = np.array([1.0 - l1 - l2, l1, l2])
+                if np.all(lam >= 0.0):
+                    z = lam @ ndc[tri, 2]
+                    if -1.0 <= z <= 1.0 and z < best:
+                        best, ids[r, c] = z, f
+    return ids, near_edge
+
+
+@pytest.mark.parametrize("make", [_tetrahedron, _two_triangles])
+def test_face_ids_match_reference(make):
+    mesh = make()
+    cameras = _cameras(mesh)
+    ids = face_id_buffers(mesh, cameras, SIZE, SIZE)
+    assert ids.shape == (len(cameras), SIZE, SIZE) and ids.dtype == np.int32
+    for view, camera in enumerate(cameras):
+        expected, near_edge = _reference(mesh, camera, SIZE, SIZE)
+        differ = (ids[view] != expected) & ~near_edge
+        assert not differ.any(), f"view {view}: {np.argwhere(differ)[:5]}"
+        assert (expected >= 0).sum() > 20  # the scene is really in view
+    if mesh.n_faces == 2:  # both overlapping triangles are seen somewhere
+        assert set(np.unique(ids[0])) == {-1, 0, 1}
+
+
+def _sphere():
+    s = trimesh.creation.icosphere(subdivisions=4)
+    return Mesh(np.asarray(s.vertices), np.asarray(s.faces), name="sphere")
+
+
+def test_sphere_covers_inscribed_disc():
+    mesh = _sphere()
+    camera = protocol_cameras(mesh)[0]
+    ids = face_id_buffers(mesh, [camera], 256, 256)
+    coverage = np.mean(ids >= 0)
+    assert abs(coverage - np.pi / 4) <= 0.01 * np.pi / 4
+    lum = rasterize_luminance(mesh, [camera], 256, 256)
+    assert np.array_equal(lum == 128.0, ids < 0)  # lit pixels are never exactly gray
+    # The sphere's centre faces the headlight: white.
+    assert lum[0, 128, 128] == pytest.approx(255.0)
+
+
+def test_background_is_exactly_128():
+    mesh = _sphere()
+    camera = protocol_cameras(mesh)[3]
+    away = Camera(eye=[0.0, 0.0, 3.0], target=[0.0, 0.0, 6.0], up=[0.0, 1.0, 0.0],
+                  near=0.5, far=10.0)
+    for shading in ("flat", "gouraud"):
+        lum = rasterize_luminance(mesh, [camera, away], 64, 48, shading)
+        ids = face_id_buffers(mesh, [camera, away], 64, 48)
+        assert lum.shape == (2, 48, 64) and lum.dtype == np.float64
+        assert np.all(lum[ids < 0] == 128.0)
+        assert np.all(lum[1] == 128.0) and np.all(ids[1] == -1)
+        assert lum[0, 0, 0] == 128.0 and lum[0, -1, -1] == 128.0
+    empty = Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int32))
+    assert np.all(rasterize_luminance(empty, [camera], 8, 8) == 128.0)
+
+
+def test_deterministic():
+    mesh = _tetrahedron()
+    cameras = cameras_for(mesh, dodecahedron_directions())
+    for shading in ("flat", "gouraud"):
+        first = rasterize_luminance(mesh, cameras, 64, 64, shading)
+        second = rasterize_luminance(mesh, cameras, 64, 64, shading)
+        assert np.array_equal(first, second)
+    assert np.array_equal(face_id_buffers(mesh, cameras, 64, 64),
+                          face_id_buffers(mesh, cameras, 64, 64))
+
+
+def test_two_sided_flat_lighting():
+    """A quad facing the eye is white from the front and from the back."""
+    positions = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    front = Camera(eye=[0, 0, 3], target=[0, 0, 0], up=[0, 1, 0], near=1.0, far=5.0)
+    back = Camera(eye=[0, 0, -3], target=[0, 0, 0], up=[0, 1, 0], near=1.0, far=5.0)
+    lum = rasterize_luminance(Mesh(positions, faces), [front, back], 33, 33, "flat")
+    assert lum[0, 16, 16] == pytest.approx(255.0)
+    assert lum[1, 16, 16] == pytest.approx(255.0)
+    # Off-centre the headlight is oblique: darker than the centre, but lit.
+    assert 128.0 < lum[0, 16, 24] < 255.0
+    # Gouraud lights only the corners (cos = 3 / sqrt(11)), from either side, so the
+    # interpolated value is the same everywhere on the quad.
+    corner = np.round(255.0 * (0.1 + 0.9 * 3.0 / np.sqrt(11.0)))
+    lum = rasterize_luminance(Mesh(positions, faces), [front, back], 33, 33, "gouraud")
+    assert lum[0, 16, 16] == pytest.approx(corner)
+    assert lum[1, 16, 16] == pytest.approx(corner)
+
+
+# -- agreement with the evaluation renderer --------------------------------------------------
+
+def _d_rms(a, b):
+    return float(np.sqrt(np.mean((a - b) ** 2)))
+
+
+@pytest.mark.parametrize("shading", ["flat", "gouraud"])
+def test_matches_evaluation_renderer_without_msaa(shading):
+    render = pytest.importorskip("metrics.render")
+    from bench.models import BUNNY
+    from metrics.image import luminance
+
+    mesh = BUNNY.load()
+    cameras = protocol_cameras(mesh)
+    try:
+        images = render.get_renderer(256, 256, 4).render(mesh, cameras, shading,
+                                                         msaa=False)
+    except RuntimeError as error:  # no EGL on this machine
+        pytest.skip(str(error))
+    ours = rasterize_luminance(mesh, cameras, 256, 256, shading)
+    value = _d_rms(ours, luminance(images))
+    print(f"d_rms({shading}) = {value:.4f}")
+    assert value <= 1.0
