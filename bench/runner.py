@@ -303,10 +303,16 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
         for _ in range(max(1, min(workers, len(jobs)))):
             pool.append(spawn())
         while pending or any(w.job for w in pool):
-            for w in pool:
+            for i, w in enumerate(pool):
                 if w.job is None and pending:
+                    if not w.process.is_alive():  # died between jobs: replace it
+                        w.process.join()
+                        pool[i] = w = spawn()
                     w.job, w.started = pending.popleft(), time.monotonic()
-                    w.conn.send(w.job)
+                    try:
+                        w.conn.send(w.job)
+                    except (OSError, BrokenPipeError):
+                        pass  # seen as a dead worker below: a failed record, not a crash
             busy = [w for w in pool if w.job is not None]
             ready = wait([w.conn for w in busy], timeout=0.5)
             for w in busy:
