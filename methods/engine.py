@@ -468,41 +468,6 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
 # -- cost and placement -------------------------------------------------------------------
 
 @njit(cache=True)
-def _is_seam_vertex(v, FW, vhead, cnext, falive):
-    """True when the faces around v use more than one wedge for it."""
-    first = -1
-    c = vhead[v]
-    while c != -1:
-        if falive[c // 3]:
-            w = FW[c // 3, c % 3]
-            if first == -1:
-                first = w
-            elif w != first:
-                return True
-        c = cnext[c]
-    return False
-
-
-@njit(cache=True)
-def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
-    """True when the edge's two faces use different wedges for one of its ends."""
-    if _edge_faces(u, v, F, vhead, cnext, falive, efaces) != 2:
-        return False
-    f, g = efaces[0], efaces[1]
-    for x in (u, v):
-        wf = -1
-        wg = -1
-        for j in range(3):
-            if F[f, j] == x:
-                wf = FW[f, j]
-            if F[g, j] == x:
-                wg = FW[g, j]
-        if wf != wg:
-            return True
-    return False
-
-
-@njit(cache=True)
 def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, tick,
                     tri_a, tri_b, tri_c, bnd_a, bnd_b, link):
     """The Lindstrom–Turk profile of edge (a, b): triangles around either end, their
@@ -837,22 +802,7 @@ def _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fro
     falls back to interpolation along the edge."""
     tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, targets, new_uv = r5ws
     cap = tri_a.shape[0]
-    nt = 0
-    for side in range(2):
-        x = u if side == 0 else v
-        c = vhead[x]
-        while c != -1:
-            f = c // 3
-            if falive[f]:
-                w = _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs)
-                seen = False
-                for i in range(nt):
-                    if targets[i] == w:
-                        seen = True
-                if not seen and nt < targets.shape[0]:
-                    targets[nt] = w
-                    nt += 1
-            c = cnext[c]
+    nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)
     for ti in range(nt):
         t = targets[ti]
         n = 0

@@ -53,6 +53,32 @@ BACKGROUND = 128
 SHADINGS = ("flat", "gouraud")
 
 
+def vertex_light(positions, normals, eyes, ambient, diffuse, ks, shininess, specular):
+    """Per-vertex headlight terms for gouraud shading, lit from both sides.
+
+    Parameters
+    ----------
+    positions, normals : ndarray of shape (n, 3)
+    eyes : ndarray of shape (V, 3)
+
+    Returns
+    -------
+    ndarray of shape (V, n, 4)
+        (diffuse+ambient, specular) for the front side, then for the back side.
+    """
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    n = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0.0)
+    to_eye = eyes[:, None, :] - positions[None]
+    to_eye /= np.linalg.norm(to_eye, axis=2, keepdims=True)
+    dot = np.einsum("vnk,nk->vn", to_eye, n)
+    light = np.empty(dot.shape + (4,))
+    for k, side in ((0, dot), (2, -dot)):
+        cos = np.maximum(side, 0.0)
+        light[..., k] = ambient + diffuse * cos
+        light[..., k + 1] = ks * cos ** shininess if specular else 0.0
+    return light
+
+
 # -- set-up in NumPy ----------------------------------------------------------------------
 
 def _project(positions: np.ndarray, cameras, width: int, height: int):
@@ -331,17 +357,8 @@ def rasterize_luminance(mesh, cameras, width: int = 256, height: int = 256,
     ks, shin = float(constants.specular), float(constants.shininess)
     gouraud = shading == "gouraud"
     if gouraud:
-        n = np.asarray(mesh.vertex_normals, dtype=np.float64)
-        length = np.linalg.norm(n, axis=1, keepdims=True)
-        n = np.divide(n, length, out=np.zeros_like(n), where=length > 0.0)
-        to_eye = eyes[:, None, :] - positions[None]
-        to_eye /= np.linalg.norm(to_eye, axis=2, keepdims=True)
-        dot = np.einsum("vnk,nk->vn", to_eye, n)
-        light = np.empty(dot.shape + (4,))
-        for k, side in ((0, dot), (2, -dot)):
-            cos = np.maximum(side, 0.0)
-            light[..., k] = a + d * cos
-            light[..., k + 1] = ks * cos ** shin if specular else 0.0
+        light = vertex_light(positions, np.asarray(mesh.vertex_normals, dtype=np.float64),
+                             eyes, a, d, ks, shin, specular)
         face_n = np.zeros((1, 3))
     else:
         light = np.zeros((1, 1, 4))

@@ -70,7 +70,8 @@ import numpy as np
 from numba import njit
 
 from bench.mesh import Mesh, _edge_vectors, _normalize, face_normals
-from methods.raster import BACKGROUND, SHADINGS, _project, _raster_kernel, _shade_kernel
+from methods.raster import (BACKGROUND, SHADINGS, _project, _raster_kernel, _shade_kernel,
+                            vertex_light)
 
 __all__ = ["ViewStack"]
 
@@ -450,19 +451,8 @@ class ViewStack:
     def _vertex_light(self, verts):
         """(V, k, 4) lighting of vertices, with rasterize_luminance's expressions."""
         a, d, ks, shin, _ = self._consts
-        positions = self._positions[verts]
-        n = self._vertex_n[verts]
-        length = np.linalg.norm(n, axis=1, keepdims=True)
-        n = np.divide(n, length, out=np.zeros_like(n), where=length > 0.0)
-        to_eye = self._eyes[:, None, :] - positions[None]
-        to_eye /= np.linalg.norm(to_eye, axis=2, keepdims=True)
-        dot = np.einsum("vnk,nk->vn", to_eye, n)
-        light = np.empty(dot.shape + (4,))
-        for k, side in ((0, dot), (2, -dot)):
-            cos = np.maximum(side, 0.0)
-            light[..., k] = a + d * cos
-            light[..., k + 1] = ks * cos ** shin if self.specular else 0.0
-        return light
+        return vertex_light(self._positions[verts], self._vertex_n[verts], self._eyes,
+                            a, d, ks, shin, self.specular)
 
     def _update_vertex_normals(self, vertices):
         """Recompute the welded normals of the groups of ``vertices``; return the

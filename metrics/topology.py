@@ -56,15 +56,10 @@ def _distance_to_segments(points: np.ndarray, segments: np.ndarray, k: int = 8) 
 
 def counts(original: Mesh, simplified: Mesh) -> dict:
     """All counting metrics as a dict of ints."""
-    w = simplified.welded
-    return {
-        "faces": simplified.n_faces,
-        "render_vertices": simplified.n_vertices,
-        "welded_vertices": w.n_vertices,
-        "boundary_edges": int(w.boundary.sum()),
-        "seam_cracks": seam_cracks(original, simplified),
-        "non_manifold_edges": int(w.non_manifold.sum()),
-    }
+    summary = simplified.summary()
+    keys = ("faces", "render_vertices", "welded_vertices", "boundary_edges",
+            "non_manifold_edges")
+    return {**{k: summary[k] for k in keys}, "seam_cracks": seam_cracks(original, simplified)}
 
 
 def _count(key: str):

@@ -292,8 +292,10 @@ def cameras_for(mesh_or_points, directions) -> list[Camera]:
     ValueError
         If the points are invalid, all coincide (radius 0), or a direction is zero.
     """
-    points = getattr(mesh_or_points, "positions", mesh_or_points)
-    center, radius = bounding_sphere(points)
+    if hasattr(mesh_or_points, "content_hash"):  # a Mesh: its sphere is computed once
+        center, radius = _mesh_sphere(mesh_or_points.content_hash, mesh_or_points.positions)
+    else:
+        center, radius = bounding_sphere(mesh_or_points)
     if not radius > 0.0:
         raise ValueError("all points coincide; the bounding sphere has radius 0, so there "
                          "is nothing to frame")
@@ -309,6 +311,18 @@ def cameras_for(mesh_or_points, directions) -> list[Camera]:
                fov_y_deg=FOV_Y_DEG, near=NEAR_IN_RADII * radius, far=FAR_IN_RADII * radius)
         for di in d
     ]
+
+
+_SPHERES: dict = {}
+
+
+def _mesh_sphere(key: str, positions: np.ndarray) -> tuple[np.ndarray, float]:
+    """bounding_sphere of a mesh's positions, remembered by content hash: the protocol
+    asks for it for every view set of every job on the same original."""
+    if key not in _SPHERES:
+        _SPHERES[key] = bounding_sphere(positions)
+    center, radius = _SPHERES[key]
+    return center.copy(), radius
 
 
 def protocol_cameras(mesh) -> list[Camera]:
