@@ -13,6 +13,8 @@ changed, so numbers cannot be compared), ``missing`` (in the baseline, not in th
 from __future__ import annotations
 
 import json
+import math
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,24 +40,38 @@ def metric_directions() -> dict[str, bool]:
 
 
 def _key(model: str, label: str, target: int, shading: str) -> str:
+    """``model | method | target | shading``; the shading is the evaluation's, with
+    ``-spec`` when specular was on (:func:`bench.results.shading_label`)."""
     return f"{model} | {label} | {target} | {shading}"
 
 
 def make_baseline(records: list[dict]) -> dict:
-    """The comparable essence of a run: status, versions and directed metrics per job."""
+    """The comparable essence of a run: status, versions and directed metrics per job.
+
+    Metrics that are missing or not finite (NaN: undefined for that model) are left out,
+    so they can be neither a regression nor an improvement.
+    """
+    from bench.results import shading_label
+
     directions = metric_directions()
     entries = {}
     for r in records:
         job = r["job"]
-        key = _key(job["model"], job["label"], job["target_faces"], job["protocol"]["shading"])
+        key = _key(job["model"], job["label"], job["target_faces"],
+                   shading_label(job["protocol"]))
         metrics = r.get("metrics") or {}
         entries[key] = {
             "status": r["status"],
             "method_version": (r.get("method") or {}).get("version"),
             "protocol_version": job["protocol"]["version"],
-            "metrics": {k: metrics[k] for k in directions if metrics.get(k) is not None},
+            "metrics": {k: metrics[k] for k in directions if _finite(metrics.get(k))},
         }
     return {"schema": BASELINE_SCHEMA, "entries": dict(sorted(entries.items()))}
+
+
+def _finite(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and \
+        math.isfinite(value)
 
 
 def load_baseline(path: Path) -> dict:

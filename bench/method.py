@@ -50,12 +50,19 @@ class SimplifyResult:
     artifacts : dict of str to ndarray
         Images a method wants shown in the report (name -> (h, w, 3) uint8), e.g. the
         texture borders canny-texture penalises.
+    view_cuts : callable or None
+        View-dependent methods only: ``view_cuts(cameras, protocol)`` returns one
+        :class:`Mesh` per camera (that view's simplification at the same budget), which
+        the protocol images instead of ``mesh``; ``mesh`` is then the method's
+        view-independent result, used for the geometric and silhouette metrics. A
+        ``stats`` dict attribute, if present, is merged into the record's statistics.
     """
 
     mesh: Mesh
     stats: dict = field(default_factory=dict)
     stop_reason: str | None = None
     artifacts: dict = field(default_factory=dict)
+    view_cuts: Any = None
 
 
 class Method:

@@ -17,7 +17,8 @@ from bench.errors import InputError, UnknownNameError
 from bench.registry import suggest
 from bench.mesh import Mesh
 
-__all__ = ["ModelSpec", "BUNNY", "BUNNY_TEXTURED", "TORUS", "resolve_model", "pymeshlab_sample"]
+__all__ = ["ModelSpec", "BUNNY", "BUNNY_TEXTURED", "TORUS", "INTERIOR", "TORUS_PUZZLE",
+           "resolve_model", "pymeshlab_sample"]
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,18 @@ def _torus() -> Mesh:
     return make_torus()
 
 
+def _interior() -> Mesh:
+    from bench.interior import make_interior
+
+    return make_interior()
+
+
+def _torus_puzzle() -> Mesh:
+    from bench.puzzle import make_torus_puzzle
+
+    return make_torus_puzzle()
+
+
 BUNNY = ModelSpec(
     "bunny", "Stanford bunny, flat-shaded comparisons of Lindstrom & Turk 2000",
     "pymeshlab tests/sample_meshes/bunny.obj", _load_sample("bunny.obj"),
@@ -71,6 +84,13 @@ BUNNY_TEXTURED = ModelSpec(
 TORUS = ModelSpec(
     "torus", "swept spinning-ellipse torus with a non-linear texture map (L&T 2000 §5.4)",
     "procedural (bench.torus, seed 2000)", _torus)
+INTERIOR = ModelSpec(
+    "interior", "spherical shell with four round openings around a densely tessellated "
+    "bumpy object; faces classified exterior/interior (L&T 2000 §5.2)",
+    "procedural (bench.interior)", _interior)
+TORUS_PUZZLE = ModelSpec(
+    "torus-puzzle", "the swept torus at 57,660 faces with a jigsaw puzzle texture, lit "
+    "(Williams et al. 2003, Plate 1)", "procedural (bench.puzzle, seed 2003)", _torus_puzzle)
 
 
 def _looks_like_path(word: str) -> bool:

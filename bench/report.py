@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.results import load_records, records_table
+from bench.results import load_records, records_table, shading_label
 
 __all__ = ["write_report"]
 
@@ -46,11 +46,14 @@ def write_report(run_dir: Path, records: list[dict] | None = None) -> Path:
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>bench report: "
              f"{html.escape(run_dir.name)}</title><style>{_CSS}</style></head><body>",
              f"<h1>Simplification benchmark: {html.escape(run_dir.name)}</h1>",
-             _protocol_note(records), "<h2>Summary</h2>", _table_html(table)]
+             _protocol_note(records), "<h2>Summary</h2>",
+             _table_html(table.drop(columns=[c for c in _OPTIONAL_COLUMNS
+                                             if table[c].isna().all()]))]
     for model in dict.fromkeys(table.model):
         sub = [r for r in records if r["job"]["model"] == model]
         parts.append(f"<h2>{html.escape(model)}</h2>")
         parts.append(_plots(table[(table.model == model) & (table.status == "ok")]))
+        parts.append(_exterior_table(table[(table.model == model) & (table.status == "ok")]))
         parts.append(_silhouette_plot(sub))
         parts.append(_sheets(run_dir, sub))
     parts += ["<h2>Timing</h2>", _timing(records), "<h2>Failures</h2>", _failures(records),
@@ -60,15 +63,30 @@ def write_report(run_dir: Path, records: list[dict] | None = None) -> Path:
     return path
 
 
+#: Summary-table columns left out when no record of the run defines them.
+_OPTIONAL_COLUMNS = ("exterior_share",)
+
+
+def _shadings(records: list[dict]) -> list[str]:
+    """The distinct evaluation shadings of ``records`` (``flat``, ``gouraud-spec``, ...)."""
+    return list(dict.fromkeys(shading_label(r["job"]["protocol"]) for r in records))
+
+
 def _protocol_note(records: list[dict]) -> str:
     ok = [r for r in records if r["status"] == "ok"]
     if not ok:
         return "<p class='note'>No successful jobs.</p>"
     p = ok[0]["job"]["protocol"]
     env = ok[0].get("environment", {})
+    labels = _shadings(ok)
+    shadings = " and ".join(s.replace("-spec", " + specular") for s in labels)
+    if len(labels) > 1:
+        shadings += " shading (each result evaluated under each; the shading column says which)"
+    else:
+        shadings += " shading"
     return (f"<p class='note'>Protocol v{p['version']}: 24 small-rhombicuboctahedron views at "
-            f"{p['resolution']}² with {p['msaa']}× MSAA, {p['shading']} shading"
-            f"{' + specular' if p['specular'] else ''}, 50% gray background, headlight; "
+            f"{p['resolution']}² with {p['msaa']}× MSAA, {shadings}, 50% gray background, "
+            f"headlight; "
             f"Hausdorff with {p['hausdorff_samples']:,} samples each way, as fractions of the "
             f"original's bounding-box diagonal; FLIP on {p['flip_views']} views; silhouettes "
             f"over the 20 dodecahedron views. Commit {html.escape(str(env.get('git_commit')))[:12]}, "
@@ -110,11 +128,14 @@ def _plots(table) -> str:
 
     if table.empty:
         return ""
+    # One curve per method, and per evaluation shading when a run has several.
+    series = table.method if table.shading.nunique() == 1 else \
+        table.method + " (" + table.shading + ")"
     out = []
     for column, title in (("d_rms", "d_RMS (luminance, 0-255) vs faces — cf. Figure 5"),
                           ("hausdorff_mean", "mean Hausdorff (fraction of diagonal) vs faces — cf. Figure 6")):
         fig, ax = plt.subplots(figsize=(6, 4))
-        for method, group in table.groupby("method"):
+        for method, group in table.groupby(series):
             g = group.sort_values("faces")
             ax.plot(g.faces, g[column], marker="o", label=method)
         ax.set_xscale("log")
@@ -127,6 +148,26 @@ def _plots(table) -> str:
     return "<div class='plots'>" + "".join(out) + "</div>"
 
 
+def _exterior_table(table) -> str:
+    """Share of each result's faces on the exterior (L&T 2000 §5.2), for models whose
+    metadata classifies faces; empty otherwise."""
+    table = table[table.exterior_share.notna()]
+    if table.empty:
+        return ""
+    # The share does not depend on the evaluation shading: one row per distinct result.
+    table = table.drop_duplicates(subset=["method", "target_faces", "faces", "exterior_share"])
+    rows = "".join(
+        f"<tr><td>{html.escape(r.method)}</td><td>{r.target_faces}</td><td>{_cell(r.faces)}</td>"
+        f"<td>{_cell(round(r.faces * r.exterior_share))}</td><td>{r.exterior_share:.1%}</td></tr>"
+        for r in table.itertuples())
+    return ("<h3>Faces on the exterior — cf. §5.2, Plates 2-3</h3><p class='note'>A face is "
+            "exterior when its centroid lies outside the sphere the model's metadata gives "
+            "(<code>metrics.interior</code>); the others belong to the hidden interior."
+            "</p><table><tr><th>method</th><th>target</th>"
+            "<th>faces</th><th>exterior faces</th><th>exterior share</th></tr>"
+            f"{rows}</table>")
+
+
 def _silhouette_plot(records: list[dict]) -> str:
     import matplotlib.pyplot as plt
 
@@ -134,7 +175,12 @@ def _silhouette_plot(records: list[dict]) -> str:
     if not ok:
         return ""
     smallest = min(r["job"]["target_faces"] for r in ok)
-    chosen = [r for r in ok if r["job"]["target_faces"] == smallest]
+    # Silhouettes do not depend on the evaluation shading: one bar set per method variant.
+    first = {}
+    for r in ok:
+        if r["job"]["target_faces"] == smallest:
+            first.setdefault(r["job"]["label"], r)
+    chosen = list(first.values())
     fig, ax = plt.subplots(figsize=(7, 3.5))
     width = 0.8 / len(chosen)
     for k, r in enumerate(chosen):
@@ -174,6 +220,7 @@ def _sheets(run_dir: Path, records: list[dict]) -> str:
     from bench.runner import SHEET_VIEWS, Job
     from metrics.protocol import Protocol
 
+    several = len(_shadings(records)) > 1
     out = []
     for r in records:
         if r["status"] != "ok":
@@ -193,7 +240,8 @@ def _sheets(run_dir: Path, records: list[dict]) -> str:
         figs = [f"<figure><img src='{uri}' alt='{html.escape(caption)}'>"
                 f"<figcaption>{html.escape(caption)}</figcaption></figure>"
                 for row in rows.values() for caption, uri in row if uri]
-        out.append(f"<h3>{html.escape(job['label'])} at {job['target_faces']} faces: "
+        evaluated = f", evaluated {shading}" if several else ""
+        out.append(f"<h3>{html.escape(job['label'])} at {job['target_faces']} faces{evaluated}: "
                    f"d_RMS {r['metrics']['d_rms']:.3f}</h3><div class='sheet'>{''.join(figs)}</div>")
         for name in r.get("artifacts") or []:  # images the method asked to show
             uri = _image_uri(run_dir / name)
@@ -207,11 +255,14 @@ def _sheets(run_dir: Path, records: list[dict]) -> str:
 def _timing(records: list[dict]) -> str:
     rows = ["<tr><th>model</th><th>method</th><th>faces before</th><th>faces after</th>"
             "<th>seconds</th><th>triangles removed / s</th><th>peak MB</th></tr>"]
+    several = len(_shadings(records)) > 1  # then each shading's job simplified on its own
     for r in records:
         if r["status"] != "ok":
             continue
         s = r.get("stats", {})
-        rows.append(f"<tr><td>{html.escape(r['job']['model'])}</td><td>{html.escape(r['job']['label'])}"
+        label = r["job"]["label"] + (f" ({shading_label(r['job']['protocol'])} job)"
+                                     if several else "")
+        rows.append(f"<tr><td>{html.escape(r['job']['model'])}</td><td>{html.escape(label)}"
                     f"</td><td>{r['model']['faces']}</td><td>{r['metrics']['faces']}</td>"
                     f"<td>{_cell(s.get('wall_seconds'))}</td><td>{_cell(s.get('tri_per_s'))}</td>"
                     f"<td>{_cell(s.get('peak_mb'))}</td></tr>")

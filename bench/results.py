@@ -24,15 +24,23 @@ from pathlib import Path
 
 from bench.errors import InputError
 
-__all__ = ["SCHEMA_VERSION", "CSV_COLUMNS", "write_record", "load_record", "load_records",
-           "records_table", "write_table"]
+__all__ = ["SCHEMA_VERSION", "CSV_COLUMNS", "shading_label", "write_record", "load_record",
+           "load_records", "records_table", "write_table"]
 
 SCHEMA_VERSION = 1
 
-#: Columns of results.csv, in order (DESIGN "Results"; issue "runner").
-CSV_COLUMNS = ["model", "method", "target_faces", "faces", "d_rms", "ssim", "flip",
+#: Columns of results.csv, in order (DESIGN "Results"; issue "runner"). ``shading`` is
+#: the evaluation shading (:func:`shading_label`); ``exterior_share`` is empty for models
+#: that do not classify their faces (:mod:`metrics.interior`).
+CSV_COLUMNS = ["model", "method", "shading", "target_faces", "faces", "d_rms", "ssim", "flip",
                "hausdorff_mean", "hausdorff_max", "silhouette_mean", "boundary_edges",
-               "seam_cracks", "seconds", "tri_per_s", "peak_mb", "status"]
+               "seam_cracks", "exterior_share", "seconds", "tri_per_s", "peak_mb", "status"]
+
+
+def shading_label(protocol: dict) -> str:
+    """The evaluation shading of a record's protocol: ``flat``, ``gouraud``, or either
+    with ``-spec`` when specular highlights were on (as in record file names)."""
+    return protocol["shading"] + ("-spec" if protocol.get("specular") else "")
 
 
 def write_record(path: Path, record: dict) -> Path:
@@ -75,7 +83,8 @@ def load_records(run_dir: Path) -> list[dict]:
                          "create one with bench run --out DIR")
     records = [load_record(p) for p in sorted(folder.glob("*.json"))]
     return sorted(records, key=lambda r: (r["job"]["model"], r["job"]["label"],
-                                          -r["job"]["target_faces"]))
+                                          -r["job"]["target_faces"],
+                                          shading_label(r["job"]["protocol"])))
 
 
 def records_table(records: list[dict]):
@@ -86,13 +95,14 @@ def records_table(records: list[dict]):
     for r in records:
         m, job, stats = r.get("metrics") or {}, r["job"], r.get("stats") or {}
         rows.append({
-            "model": job["model"], "method": job["label"], "target_faces": job["target_faces"],
+            "model": job["model"], "method": job["label"],
+            "shading": shading_label(job["protocol"]), "target_faces": job["target_faces"],
             "faces": m.get("faces"), "d_rms": m.get("d_rms"), "ssim": m.get("ssim"),
             "flip": m.get("flip"), "hausdorff_mean": m.get("hausdorff_mean"),
             "hausdorff_max": m.get("hausdorff_max"), "silhouette_mean": m.get("silhouette_mean"),
             "boundary_edges": m.get("boundary_edges"), "seam_cracks": m.get("seam_cracks"),
-            "seconds": stats.get("wall_seconds"), "tri_per_s": stats.get("tri_per_s"),
-            "peak_mb": stats.get("peak_mb"), "status": r["status"],
+            "exterior_share": m.get("exterior_share"), "seconds": stats.get("wall_seconds"),
+            "tri_per_s": stats.get("tri_per_s"), "peak_mb": stats.get("peak_mb"), "status": r["status"],
         })
     return pd.DataFrame(rows, columns=CSV_COLUMNS)
 

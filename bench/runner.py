@@ -18,6 +18,7 @@ import subprocess
 import time
 import traceback
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from importlib.metadata import PackageNotFoundError, version
@@ -79,10 +80,18 @@ class Job:
 
 
 def plan(models: list[str], variants: list[tuple[str, dict]], budgets: dict[str, list[int]],
-         protocol: Protocol) -> list[Job]:
-    """The cartesian product of models × method variants × each model's budgets."""
-    return [Job(model, name, faces, dict(params), protocol)
-            for model in models for name, params in variants for faces in budgets[model]]
+         protocols: Protocol | Sequence[Protocol]) -> list[Job]:
+    """The cartesian product of models × method variants × each model's budgets ×
+    evaluation protocols (one :class:`Protocol` or several), the protocol varying
+    fastest. Duplicate jobs (same record key) are planned once."""
+    if isinstance(protocols, Protocol):
+        protocols = [protocols]
+    if not protocols:
+        raise ValueError("plan needs at least one evaluation protocol")
+    jobs = [Job(model, name, faces, dict(params), protocol)
+            for model in models for name, params in variants for faces in budgets[model]
+            for protocol in protocols]
+    return list({job.key: job for job in jobs}.values())
 
 
 # -- running one job (inside a worker) ------------------------------------------------------
@@ -133,7 +142,14 @@ def _run_job(job: Job, run_dir: Path, record: dict) -> None:
                   artifacts=_save_artifacts(run_dir, job, result.artifacts))
 
     reference = original_images(mesh, job.protocol)
-    ev = evaluate(mesh, result.mesh, job.protocol, reference_images=reference)
+    view_meshes = None
+    if result.view_cuts is not None:  # view-dependent: each view imaged with its own cut
+        from metrics.views import protocol_cameras
+
+        view_meshes = result.view_cuts(protocol_cameras(mesh), job.protocol)
+        stats.update(getattr(result.view_cuts, "stats", {}))
+    ev = evaluate(mesh, result.mesh, job.protocol, reference_images=reference,
+                  view_meshes=view_meshes)
     record.update(metrics=ev.metrics, per_view=ev.per_view, seconds=ev.seconds,
                   silhouette_histogram=ev.silhouette_histogram, status="ok")
     _save_sheet_images(run_dir, job, mesh, reference, ev.images)

@@ -72,11 +72,15 @@ from dataclasses import dataclass, field
 
 import numba
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.typed import Dict
 
 from bench.mesh import Mesh
 from methods.canny import _walk
+from methods.image_cost import (TILE, build_tiles, commit_geometry, commit_render, cycles,
+                                dummy_state, image_cost)
 from methods.memoryless_math import lt_cost, lt_placement, r5_texture_coordinates, texture_kappa
+from methods.raster import BACKGROUND
 
 __all__ = ["Policy", "EngineResult", "simplify_mesh", "PLACEMENTS", "STOP_REASONS",
            "face_quadrics", "initial_quadrics", "quadric_error"]
@@ -179,6 +183,8 @@ class EngineResult:
     #: inspection and tests
     quadrics: np.ndarray | None = None
     vertex_alive: np.ndarray | None = None
+    #: with an image term: the maintained luminance images of the result (V, H, W)
+    images: np.ndarray | None = None
 
 
 # -- quadrics ---------------------------------------------------------------------------
@@ -668,10 +674,10 @@ def _add_reduced(g, uv_now, qsum):
 @njit(cache=True)
 def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, tick, ws,
               placement, weights, seam_rule, qsum, out_p, uv, borders, inv_area, no_record,
-              WQ, tws):
+              WQ, tws, ictx):
     """Cost of collapsing edge (a, b) and where the kept vertex goes.
 
-    ``weights`` = (quadric, memoryless, canny) cost-term weights; ``ws`` = the Lindstrom–Turk
+    ``weights`` = (quadric, memoryless, canny, image) cost-term weights; ``ws`` = the Lindstrom–Turk
     workspace (tri_a, tri_b, tri_c, bnd_a, bnd_b, link). Returns (cost, keep): keep is
     the vertex that survives (the other is removed), and the new position is written to
     ``out_p``. cost is +inf when the seam rule forbids the collapse.
@@ -724,6 +730,11 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
                       n_bnd, link, n_link, l2)
         cb = _cost_at(P[b], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
                       n_bnd, link, n_link, l2)
+        if weights[3] != 0.0:
+            ca += weights[3] * _image_term(b, a, P[a], P, F, FW, uv, falive, vhead, cnext,
+                                           efaces, ictx)
+            cb += weights[3] * _image_term(a, b, P[b], P, F, FW, uv, falive, vhead, cnext,
+                                           efaces, ictx)
         keep = a if ca < cb else b
         out_p[:] = P[keep]
         return min(ca, cb) + canny, keep
@@ -738,8 +749,48 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
             _optimal_point(qsum, P[a], P[b], out_p)
     else:
         _optimal_point(qsum, P[a], P[b], out_p)
-    return _cost_at(out_p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
-                    n_bnd, link, n_link, l2) + canny, keep
+    cost = _cost_at(out_p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
+                    n_bnd, link, n_link, l2) + canny
+    if weights[3] != 0.0:
+        cost += weights[3] * _image_term(a if keep == b else b, keep, out_p, P, F, FW, uv,
+                                         falive, vhead, cnext, efaces, ictx)
+    return cost, keep
+
+
+@njit(cache=True)
+def _image_term(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, ictx):
+    """Equation 8 of Lindstrom & Turk 2000 for collapsing u into v at p, with the
+    texture coordinates the collapse would give (methods.image_cost.image_cost)."""
+    img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wfrom, wto = ictx
+    targets, new_uv = r5ws[6], r5ws[7]
+    npairs = 0
+    nt = 0
+    if has_uv:
+        npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wfrom, wto)
+        t_edge = _edge_parameter(u, v, p, P)
+        if use_r5:
+            nt = _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wfrom,
+                             wto, npairs, t_edge, r5ws)
+        else:  # merged wedges interpolated along the edge, as _collapse does
+            for i in range(npairs):
+                targets[i] = wto[i]
+                for d in range(2):
+                    new_uv[i, d] = (1.0 - t_edge) * uv[wfrom[i], d] + t_edge * uv[wto[i], d]
+            nt = npairs
+    return image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfrom,
+                      wto, npairs, targets, nt, new_uv, float(BACKGROUND))
+
+
+@njit(cache=True)
+def _edge_parameter(u, v, p, P):
+    """Where p projects on the edge from u (0) to v (1), clamped."""
+    e = P[v] - P[u]
+    el2 = e[0] ** 2 + e[1] ** 2 + e[2] ** 2
+    t = 0.5
+    if el2 > 0.0:
+        t = ((p[0] - P[u, 0]) * e[0] + (p[1] - P[u, 1]) * e[1] + (p[2] - P[u, 2]) * e[2]) / el2
+        t = min(1.0, max(0.0, t))
+    return t
 
 
 @njit(cache=True)
@@ -796,10 +847,23 @@ def _mapped(w, wmap_from, wmap_to, npairs):
 @njit(cache=True)
 def _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from, wmap_to,
                npairs, t_edge, r5ws):
+    """Set the new UVs of :func:`_r5_compute`."""
+    targets, new_uv = r5ws[6], r5ws[7]
+    nt = _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from,
+                     wmap_to, npairs, t_edge, r5ws)
+    for ti in range(nt):
+        uv[targets[ti], 0] = new_uv[ti, 0]
+        uv[targets[ti], 1] = new_uv[ti, 1]
+
+
+@njit(cache=True)
+def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from, wmap_to,
+                npairs, t_edge, r5ws):
     """New UVs of every wedge around the merged vertex by Lindstrom & Turk 2000's R^5
     oriented volumes (§4.1.1), each from the triangles of its own texture patch around
     the edge (the removed ones included); a wedge whose patch profile is degenerate
-    falls back to interpolation along the edge."""
+    falls back to interpolation along the edge. Fills ``r5ws``'s targets and new UVs;
+    returns how many."""
     tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, targets, new_uv = r5ws
     cap = tri_a.shape[0]
     nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)
@@ -840,9 +904,7 @@ def _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fro
                     a = wmap_from[i]
                     new_uv[ti, 0] = (1.0 - t_edge) * uv[a, 0] + t_edge * uv[t, 0]
                     new_uv[ti, 1] = (1.0 - t_edge) * uv[a, 1] + t_edge * uv[t, 1]
-    for ti in range(nt):
-        uv[targets[ti], 0] = new_uv[ti, 0]
-        uv[targets[ti], 1] = new_uv[ti, 1]
+    return nt
 
 
 @njit(cache=True)
@@ -854,13 +916,7 @@ def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, 
     # Pair the wedges of u and v across each removed face (same side of the edge).
     npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to)
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
-    # Interpolation parameter of p along the edge, for merged attributes.
-    e = P[v] - P[u]
-    el2 = e[0] ** 2 + e[1] ** 2 + e[2] ** 2
-    t = 0.5
-    if el2 > 0.0:
-        t = ((p[0] - P[u, 0]) * e[0] + (p[1] - P[u, 1]) * e[1] + (p[2] - P[u, 2]) * e[2]) / el2
-        t = min(1.0, max(0.0, t))
+    t = _edge_parameter(u, v, p, P)  # for merged attributes
     if has_uv and WQ.shape[0] > 1:  # Garland-Heckbert 1998: merge, then minimise UVs
         targets, g = tws[2], tws[3]
         nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs,
@@ -917,8 +973,11 @@ def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, 
 
 
 @njit(cache=True)
-def _push(heap, cost, a, b, sa, sb):
-    heapq.heappush(heap, (float(cost), np.int64(a), np.int64(b), np.int64(sa), np.int64(sb)))
+def _push(heap, cost, a, b, sa, sb, p, keep):
+    """Queue edge (a, b) at ``cost`` with its endpoints' stamps, the kept vertex's new
+    position ``p`` and which end is kept (stamps -1: re-cost when popped)."""
+    heapq.heappush(heap, (float(cost), np.int64(a), np.int64(b), np.int64(sa), np.int64(sb),
+                          float(p[0]), float(p[1]), float(p[2]), np.int64(keep)))
 
 
 # -- the loop -----------------------------------------------------------------------------
@@ -927,7 +986,8 @@ def _push(heap, cost, a, b, sa, sb):
 def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
          target,
          placement, weights, cos_limit, boundary_lock, seam_rule, verify, max_collapses,
-         borders, inv_area, moved, use_r5, face_kappa, WQ):
+         borders, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws):
+    run_start = cycles()
     nv = P.shape[0]
     mark = np.zeros(nv, np.int64)
     tick = np.zeros(1, np.int64)
@@ -949,7 +1009,9 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     tws = (np.empty(8, np.int64), np.empty(8, np.int64), np.empty(64, np.int64), np.empty(31))
     r5ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 2)),
             np.empty((cap, 2)), np.empty((cap, 2)), np.empty(64, np.int64), np.empty((64, 2)))
+    ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to)
     rejects = np.zeros(_N_REJECTIONS, np.int64)
+    log_cost = np.empty(max_collapses)
     log_removed = np.empty(max_collapses, np.int32)
     log_kept = np.empty(max_collapses, np.int32)
     log_pos = np.empty((max_collapses, 3))
@@ -967,12 +1029,18 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     rec_live = np.zeros(64, np.bool_)
     blk_head = np.full(nv, -1, np.int64)
     n_rec = 0
-    # the Lindstrom-Turk and Canny terms look at the triangles around an edge
-    neighbourhood_cost = weights[1] != 0.0 or weights[2] != 0.0
+    # the Lindstrom-Turk, Canny and image terms look at the triangles around an edge
+    neighbourhood_cost = weights[1] != 0.0 or weights[2] != 0.0 or weights[3] != 0.0
     no_record = np.empty((0, 2), np.int64)
 
-    heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0))]
+    heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0), 0.0, 0.0, 0.0,
+             np.int64(0))]
     heap.pop()
+    # With the image term, the kept vertex's edges are queued lazily too (Lindstrom &
+    # Turk 2000, §4.2.2: an edge keeps its key and is re-costed when it reaches the
+    # front); their last keys are remembered per edge.
+    lazy_new = weights[3] != 0.0
+    last_key = Dict.empty(key_type=types.int64, value_type=types.float64)
     for f in range(F.shape[0]):
         if not falive[f]:
             continue
@@ -981,9 +1049,11 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
                 cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                        efaces, mark, tick, ws, placement, weights, seam_rule,
-                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws)
+                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
                 evaluations += 1
-                _push(heap, cost, a, b, 0, 0)
+                _push(heap, cost, a, b, 0, 0, p, keep)
+                if lazy_new:
+                    last_key[min(a, b) * nv + max(a, b)] = cost
 
     faces = 0
     for f in range(F.shape[0]):
@@ -995,10 +1065,10 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
         if faces <= target:
             stopped = 0
             break
-        cost, a, b, sa, sb = heapq.heappop(heap)
+        cost, a, b, sa, sb, px, py, pz, keep = heapq.heappop(heap)
         if not valive[a] or not valive[b]:
             continue
-        if sa != stamp[a] or sb != stamp[b]:  # stale
+        if sa != stamp[a] or sb != stamp[b] or keep == -1:  # stale, or queued lazily
             if sa != -1 and (sa < pushed_at[a] or sb < pushed_at[b]):
                 continue  # superseded: a newer entry for this edge was pushed since
             # re-cost lazily and push back
@@ -1006,18 +1076,24 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                 continue
             cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                        efaces, mark, tick, ws, placement, weights, seam_rule,
-                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws)
+                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
             evaluations += 1
-            _push(heap, cost, a, b, stamp[a], stamp[b])
+            _push(heap, cost, a, b, stamp[a], stamp[b], p, keep)
+            if lazy_new:
+                last_key[min(a, b) * nv + max(a, b)] = cost
             continue
         if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
             continue
-        fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule,
-                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws)
-        evaluations += 1
-        if verify and abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
-            mismatches += 1
+        if verify:  # re-cost: the stored cost and placement must be current
+            fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
+                                    efaces, mark, tick, ws, placement, weights, seam_rule,
+                                    qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
+            evaluations += 1
+            if abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
+                mismatches += 1
+        else:  # current stamps: the queued cost and placement are those of now
+            fresh = cost
+            p[0], p[1], p[2] = px, py, pz
         u = a if keep == b else b
         v = keep
         if fresh == np.inf:
@@ -1044,6 +1120,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             break
         if n_changed + 4096 > log_changed.shape[0]:  # a vertex has far fewer faces
             log_changed = np.concatenate((log_changed, np.empty_like(log_changed)))
+        log_cost[n] = fresh
         log_removed[n] = u
         log_kept[n] = v
         log_pos[n] = p
@@ -1055,6 +1132,14 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                                        r5ws, WQ, tws)
         for i in range(min(removed, 2)):
             log_faces[n, i] = efaces[i]
+        if weights[3] != 0.0:  # bring the images up to date
+            if not commit_geometry(v, efaces, removed, P, F, FW, uv, falive, vhead, cnext,
+                                   valive, img, tiles, iws):
+                tiles = build_tiles(img[6], falive, TILE, -(-img[4].shape[2] // TILE),
+                                    -(-img[4].shape[1] // TILE))
+                img[11][5] += 1
+                ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to)
+            commit_render(P, F, FW, uv, falive, img, tiles, iws, float(BACKGROUND))
         n += 1
         log_start[n] = n_changed
         faces -= removed
@@ -1076,18 +1161,27 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                     rec_live[j] = False
                     o = rec_end[j, 1 - side]
                     if valive[o]:
-                        _push(heap, cost, w, o, -1, -1)
+                        _push(heap, cost, w, o, -1, -1, p, -1)
                 j = rec_next[j, side]
             blk_head[w] = -1
         for i in range(m):
             w = nbr_v[i]
             if w == v:
                 continue
+            if lazy_new:  # the edge's last key, re-costed when it reaches the front
+                key = fresh
+                kv, ku = min(v, w) * nv + max(v, w), min(u, w) * nv + max(u, w)
+                if kv in last_key:
+                    key = last_key[kv]
+                elif ku in last_key:
+                    key = last_key[ku]
+                _push(heap, key, v, w, stamp[v], stamp[w], p, -1)
+                continue
             c2, k2 = _evaluate(v, w, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                efaces, mark, tick, ws, placement, weights, seam_rule, qsum,
-                               p, uv, borders, inv_area, no_record, WQ, tws)
+                               p, uv, borders, inv_area, no_record, WQ, tws, ictx)
             evaluations += 1
-            _push(heap, c2, v, w, stamp[v], stamp[w])
+            _push(heap, c2, v, w, stamp[v], stamp[w], p, k2)
         pushed_at[v] = stamp[v]
         # The apexes of the removed faces lost a face, which can change whether they are
         # seam vertices (and so the seam rule's verdict on their edges): give them fresh
@@ -1108,14 +1202,16 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                     c2, k2 = _evaluate(x, y, P, Q, F, FW, vhead, cnext, falive, vboundary,
                                        efaces, mark, tick, ws, placement, weights, seam_rule,
                                        qsum, p, uv, borders, inv_area, no_record, WQ,
-                                       tws)
+                                       tws, ictx)
                     evaluations += 1
-                    _push(heap, c2, x, y, stamp[x], stamp[y])
+                    _push(heap, c2, x, y, stamp[x], stamp[y], p, k2)
                 pushed_at[x] = stamp[x]
     if faces <= target:
         stopped = 0
+    img[11][4] += cycles() - run_start
     return (stopped, n, evaluations, mismatches, rejects, log_removed[:n], log_kept[:n],
-            log_pos[:n], log_faces[:n], log_start[:n + 1], log_changed[:n_changed])
+            log_pos[:n], log_faces[:n], log_start[:n + 1], log_changed[:n_changed],
+            log_cost[:n])
 
 
 
@@ -1248,7 +1344,8 @@ def vboundary_of(w, nv: int) -> np.ndarray:
 
 
 def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
-                  verify: bool = False, borders: np.ndarray | None = None) -> EngineResult:
+                  verify: bool = False, borders: np.ndarray | None = None,
+                  image=None, max_collapses: int | None = None) -> EngineResult:
     """Collapse edges of ``mesh`` until it has at most ``target_faces`` faces (or no
     valid collapse remains) under ``policy``.
 
@@ -1264,6 +1361,12 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
         re-evaluated (the lazy-queue invariant); counts go to ``stats``.
     borders : ndarray of shape (h, w) bool, optional
         Texture borders for the Canny term (``policy.canny_weight``).
+    image : methods.image_cost.ImageTerm, optional
+        Adds Lindstrom & Turk 2000's image cost (equation 8) with ``image.weight``;
+        ``verify`` then also re-renders the final mesh from scratch and counts pixels
+        that differ from the incrementally maintained images.
+    max_collapses : int, optional
+        Stop after this many collapses (for tests and step-by-step inspection).
 
     Notes
     -----
@@ -1286,13 +1389,27 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     P = (P0 - lo) / scale
     F = w.faces.astype(np.int64).copy()
     FW = mesh.faces.astype(np.int64).copy()
-    falive = np.ones(len(F), bool)
+    wedge_vertex = w.vertex_of.astype(np.int64).copy()
+    boundary_corners = _boundary_corners(mesh)
     nv = len(P)
+    vboundary = vboundary_of(w, nv)
+    vperm = fperm = None
+    if image is not None:
+        # Renumber vertices and faces along a Morton curve, so that the faces and
+        # vertices of a screen region sit close together in memory (the image term
+        # reads them per pixel rectangle); ids in the log are mapped back at the end.
+        vperm = np.argsort(_morton(P), kind="stable")
+        inverse = np.empty_like(vperm)
+        inverse[vperm] = np.arange(nv)
+        P0, P, vboundary = P0[vperm], P[vperm], vboundary[vperm]
+        F, wedge_vertex = inverse[F], inverse[wedge_vertex]
+        fperm = np.argsort(_morton(P[F].mean(axis=1)), kind="stable")
+        F, FW, boundary_corners = F[fperm], FW[fperm], boundary_corners[fperm]
+    falive = np.ones(len(F), bool)
     vhead, cnext = _corner_lists(F, nv)
     valive = np.zeros(nv, bool)
     valive[np.unique(F)] = True
     moved = np.zeros(nv, bool)
-    wedge_vertex = w.vertex_of.astype(np.int64).copy()
     has_uv = mesh.uv is not None
     uv = mesh.uv.copy() if has_uv else np.zeros((1, 2))
     if policy.canny_weight != 0.0 and (borders is None or not has_uv):
@@ -1305,7 +1422,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     inv_area = 1.0 / area if area > 0 else 0.0
 
     texture_quadrics = policy.texture_weight > 0 and has_uv and policy.quadric_weight != 0
-    Q = initial_quadrics(P, F, _boundary_corners(mesh), policy.boundary_weight,
+    Q = initial_quadrics(P, F, boundary_corners, policy.boundary_weight,
                          faces=not texture_quadrics)
     WQ = (wedge_quadrics(P, F, FW, uv, policy.texture_weight) if texture_quadrics
           else np.zeros((1, 31)))
@@ -1313,16 +1430,26 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     use_r5 = bool(policy.r5_uv and has_uv and policy.placement == "memoryless")
     face_kappa = _face_kappa(P, F, FW, uv) if use_r5 else np.ones(1)
     cos_limit = math.cos(math.radians(policy.max_normal_rotation))
-    weights = np.array([policy.quadric_weight, policy.memoryless_weight, policy.canny_weight],
-                       np.float64)
-    out = _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary_of(w, nv), wedge_vertex,
+    weights = np.array([policy.quadric_weight, policy.memoryless_weight, policy.canny_weight,
+                        0.0 if image is None else image.weight], np.float64)
+    if image is None:
+        img, tiles, iws = dummy_state()
+    else:
+        if texture_quadrics:
+            raise ValueError("the image term does not combine with texture quadrics")
+        img, tiles, iws = image.state(mesh, P, F, FW, uv, falive, vhead, cnext, valive, lo,
+                                      scale)
+    limit = max(1, nv) if max_collapses is None else max(0, int(max_collapses))
+    out = _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex,
                uv, has_uv, int(target_faces), PLACEMENTS[policy.placement], weights, cos_limit,
                bool(policy.boundary_lock),
                bool(policy.seam_rule and mesh.n_vertices != w.n_vertices), bool(verify),
-               max(1, nv), borders_arr, inv_area, moved, use_r5, face_kappa, WQ)
-    P = np.where(moved[:, None], P * scale + lo, P0)
+               limit, borders_arr, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws)
     (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
-     log_faces, log_start, log_changed) = out
+     log_faces, log_start, log_changed, log_cost) = out
+    image_stats = {} if image is None else image.statistics(
+        mesh, img, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale)
+    P = np.where(moved[:, None], P * scale + lo, P0)
 
     simplified = _extract(mesh, P, FW[falive], wedge_vertex, uv if has_uv else None)
     faces = int(falive.sum())
@@ -1338,10 +1465,27 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
              "collapses_per_second": n / seconds if seconds > 0 else None}
     if verify:
         stats["lazy_mismatches"] = int(mismatches)
+    stats.update(image_stats)
+    if vperm is not None:  # back to the input's numbering
+        log_removed, log_kept = vperm[log_removed], vperm[log_kept]
+        log_faces = np.where(log_faces >= 0, fperm[np.maximum(log_faces, 0)], -1)
+        log_changed = fperm[log_changed]
+        Q, valive = Q[np.argsort(vperm)], valive[np.argsort(vperm)]
     log = {"removed": log_removed, "kept": log_kept, "position": log_pos * scale + lo,
            "removed_faces": log_faces, "changed_start": log_start,
-           "changed_faces": log_changed}
-    return EngineResult(simplified, reason, stats, log, quadrics=Q, vertex_alive=valive)
+           "changed_faces": log_changed, "cost": log_cost}
+    return EngineResult(simplified, reason, stats, log, quadrics=Q, vertex_alive=valive,
+                        images=None if image is None else img[4])
+
+
+def _morton(points: np.ndarray) -> np.ndarray:
+    """Morton (Z-order) codes of points in the unit cube, 10 bits per axis."""
+    q = np.clip((points * 1023.0).astype(np.int64), 0, 1023)
+    code = np.zeros(len(points), np.int64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((q[:, axis] >> bit) & 1) << (3 * bit + axis)
+    return code
 
 
 def _extract(mesh: Mesh, P, faces_wedges, wedge_vertex, uv) -> Mesh:

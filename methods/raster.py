@@ -114,94 +114,138 @@ def _project(positions: np.ndarray, cameras, width: int, height: int):
     return np.ascontiguousarray(screen)
 
 
-def _check(mesh, cameras, width, height):
-    cameras = list(cameras)
-    width, height = int(width), int(height)
-    if width < 1 or height < 1:
-        raise ValueError(f"image size must be positive, got {width} x {height}")
-    return cameras, width, height
+# -- the per-face set-up table ------------------------------------------------------------
+# Every face to draw in a view is first written as one row of a table: screen
+# coordinates of its corners, its normal, its corners' positions, per-corner lighting
+# and texture coordinates. The scan converter and the shader read only the table, so
+# the same two kernels serve whole images (:func:`rasterize_luminance`) and the small
+# regions that image-driven simplification re-renders per candidate collapse, whatever
+# produced the rows (per-vertex arrays here, wedges and a simulated collapse in
+# :mod:`methods.image_cost`).
 
-
-# -- numba kernels --------------------------------------------------------------------------
-
-@njit(cache=True, parallel=True)
-def _raster_kernel(screen, faces, width, height):
-    """Face index per pixel (-1 empty) by z-buffered scan conversion.
-
-    screen : (V, n, 4) float64, faces : (m, 3) int32 -> (V, height, width) int32.
-    """
-    n_views = screen.shape[0]
-    ids = np.full((n_views, height, width), -1, np.int32)
-    for v in prange(n_views):
-        depth = np.full((height, width), np.inf)
-        s = screen[v]
-        for f in range(faces.shape[0]):
-            i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-            if s[i0, 3] <= 0.0 or s[i1, 3] <= 0.0 or s[i2, 3] <= 0.0:
-                continue
-            x0, y0, z0 = s[i0, 0], s[i0, 1], s[i0, 2]
-            x1, y1, z1 = s[i1, 0], s[i1, 1], s[i1, 2]
-            x2, y2, z2 = s[i2, 0], s[i2, 1], s[i2, 2]
-            area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-            if not area != 0.0:  # zero or NaN
-                continue
-            if area < 0.0:  # make the winding positive: swap vertices 1 and 2
-                x1, y1, z1, x2, y2, z2 = x2, y2, z2, x1, y1, z1
-                area = -area
-            cmin = max(0, int(np.ceil(min(x0, x1, x2) - 0.5)))
-            cmax = min(width - 1, int(np.floor(max(x0, x1, x2) - 0.5)))
-            rmin = max(0, int(np.ceil(min(y0, y1, y2) - 0.5)))
-            rmax = min(height - 1, int(np.floor(max(y0, y1, y2) - 0.5)))
-            if cmin > cmax or rmin > rmax:
-                continue
-            # Edge k is opposite vertex k; top-left: dy < 0, or dy == 0 and dx > 0.
-            dx0, dy0 = x2 - x1, y2 - y1
-            dx1, dy1 = x0 - x2, y0 - y2
-            dx2, dy2 = x1 - x0, y1 - y0
-            tl0 = dy0 < 0.0 or (dy0 == 0.0 and dx0 > 0.0)
-            tl1 = dy1 < 0.0 or (dy1 == 0.0 and dx1 > 0.0)
-            tl2 = dy2 < 0.0 or (dy2 == 0.0 and dx2 > 0.0)
-            inv_area = 1.0 / area
-            for r in range(rmin, rmax + 1):
-                py = r + 0.5
-                for c in range(cmin, cmax + 1):
-                    px = c + 0.5
-                    e0 = dx0 * (py - y1) - dy0 * (px - x1)
-                    if e0 < 0.0 or (e0 == 0.0 and not tl0):
-                        continue
-                    e1 = dx1 * (py - y2) - dy1 * (px - x2)
-                    if e1 < 0.0 or (e1 == 0.0 and not tl1):
-                        continue
-                    e2 = dx2 * (py - y0) - dy2 * (px - x0)
-                    if e2 < 0.0 or (e2 == 0.0 and not tl2):
-                        continue
-                    z = (e0 * z0 + e1 * z1 + e2 * z2) * inv_area
-                    if z < -1.0 or z > 1.0:
-                        continue
-                    if z < depth[r, c]:
-                        depth[r, c] = z
-                        ids[v, r, c] = f
-    return ids
+T_X, T_Y, T_Z, T_W = 0, 3, 6, 9  # x, y (pixels, y down), z (NDC) and clip w of corners 0-2
+T_N = 12  # unit face normal (flat shading)
+T_P = 15  # corner positions, 3 x 3
+T_L = 24  # corner lighting, 3 x 4: (lit front, spec front, lit back, spec back)
+T_UV = 36  # corner texture coordinates, 3 x 2
+ROW = 42
 
 
 @njit(cache=True)
-def _weights(s, i0, i1, i2, px, py):
-    """Perspective-correct barycentrics (b0, b1, b2) of pixel centre (px, py)."""
-    x0, y0 = s[i0, 0], s[i0, 1]
-    x1, y1 = s[i1, 0], s[i1, 1]
-    x2, y2 = s[i2, 0], s[i2, 1]
+def scan_row(t, k, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
+    """Z-buffer row ``k`` of table ``t`` into the region [r_lo, r_hi] x [c_lo, c_hi].
+
+    ``depth`` and ``ids`` are indexed from (r_lo, c_lo); a pixel the face wins gets
+    ``ids = k``. Returns the number of pixel centres tested.
+    """
+    if t[k, T_W] <= 0.0 or t[k, T_W + 1] <= 0.0 or t[k, T_W + 2] <= 0.0:
+        return 0
+    x0, y0, z0 = t[k, T_X], t[k, T_Y], t[k, T_Z]
+    x1, y1, z1 = t[k, T_X + 1], t[k, T_Y + 1], t[k, T_Z + 1]
+    x2, y2, z2 = t[k, T_X + 2], t[k, T_Y + 2], t[k, T_Z + 2]
+    area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    if not area != 0.0:  # zero or NaN
+        return 0
+    if area < 0.0:  # y-down clockwise: the GL front face
+        if cull_front:
+            return 0
+        x1, y1, z1, x2, y2, z2 = x2, y2, z2, x1, y1, z1  # make the winding positive
+        area = -area
+    # clamped as floats first, so that far-away vertices cannot overflow the integers
+    cmin = int(min(max(np.ceil(min(x0, x1, x2) - 0.5), float(c_lo)), c_hi + 1.0))
+    cmax = int(max(min(np.floor(max(x0, x1, x2) - 0.5), float(c_hi)), c_lo - 1.0))
+    rmin = int(min(max(np.ceil(min(y0, y1, y2) - 0.5), float(r_lo)), r_hi + 1.0))
+    rmax = int(max(min(np.floor(max(y0, y1, y2) - 0.5), float(r_hi)), r_lo - 1.0))
+    if cmin > cmax or rmin > rmax:
+        return 0
+    # Edge i is opposite vertex i; top-left: dy < 0, or dy == 0 and dx > 0.
+    dx0, dy0 = x2 - x1, y2 - y1
+    dx1, dy1 = x0 - x2, y0 - y2
+    dx2, dy2 = x1 - x0, y1 - y0
+    tl0 = dy0 < 0.0 or (dy0 == 0.0 and dx0 > 0.0)
+    tl1 = dy1 < 0.0 or (dy1 == 0.0 and dx1 > 0.0)
+    tl2 = dy2 < 0.0 or (dy2 == 0.0 and dx2 > 0.0)
+    inv_area = 1.0 / area
+    for r in range(rmin, rmax + 1):
+        py = r + 0.5
+        for c in range(cmin, cmax + 1):
+            px = c + 0.5
+            e0 = dx0 * (py - y1) - dy0 * (px - x1)
+            if e0 < 0.0 or (e0 == 0.0 and not tl0):
+                continue
+            e1 = dx1 * (py - y2) - dy1 * (px - x2)
+            if e1 < 0.0 or (e1 == 0.0 and not tl1):
+                continue
+            e2 = dx2 * (py - y0) - dy2 * (px - x0)
+            if e2 < 0.0 or (e2 == 0.0 and not tl2):
+                continue
+            z = (e0 * z0 + e1 * z1 + e2 * z2) * inv_area
+            if z < -1.0 or z > 1.0:
+                continue
+            if z < depth[r - r_lo, c - c_lo]:
+                depth[r - r_lo, c - c_lo] = z
+                ids[r - r_lo, c - c_lo] = k
+    return (rmax - rmin + 1) * (cmax - cmin + 1)
+
+
+@njit(cache=True)
+def shade_pixel(t, k, px, py, eye, consts, texture):
+    """Luminance (0..255) of table row ``k`` at pixel centre (px, py).
+
+    ``consts`` = (ambient, diffuse, ks, shininess, albedo, specular, gouraud, textured).
+    """
+    ambient, diffuse, ks, shininess, albedo = consts[0], consts[1], consts[2], consts[3], \
+        consts[4]
+    specular, gouraud, textured = consts[5] != 0.0, consts[6] != 0.0, consts[7] != 0.0
+    x0, y0, w0 = t[k, T_X], t[k, T_Y], t[k, T_W]
+    x1, y1, w1 = t[k, T_X + 1], t[k, T_Y + 1], t[k, T_W + 1]
+    x2, y2, w2 = t[k, T_X + 2], t[k, T_Y + 2], t[k, T_W + 2]
+    # perspective-correct barycentrics
     e0 = (x2 - x1) * (py - y1) - (y2 - y1) * (px - x1)
     e1 = (x0 - x2) * (py - y2) - (y0 - y2) * (px - x2)
     e2 = (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0)
-    q0, q1, q2 = e0 / s[i0, 3], e1 / s[i1, 3], e2 / s[i2, 3]
+    q0, q1, q2 = e0 / w0, e1 / w1, e2 / w2
     total = q0 + q1 + q2
-    return q0 / total, q1 / total, q2 / total
+    b0, b1, b2 = q0 / total, q1 / total, q2 / total
+    if gouraud:
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        s = 0 if area < 0.0 else 2  # y-down clockwise == GL front face
+        lit = (b0 * t[k, T_L + s] + b1 * t[k, T_L + 4 + s] + b2 * t[k, T_L + 8 + s])
+        spec = (b0 * t[k, T_L + s + 1] + b1 * t[k, T_L + 5 + s] + b2 * t[k, T_L + 9 + s])
+    else:
+        qx = b0 * t[k, T_P] + b1 * t[k, T_P + 3] + b2 * t[k, T_P + 6]
+        qy = b0 * t[k, T_P + 1] + b1 * t[k, T_P + 4] + b2 * t[k, T_P + 7]
+        qz = b0 * t[k, T_P + 2] + b1 * t[k, T_P + 5] + b2 * t[k, T_P + 8]
+        lx, ly, lz = eye[0] - qx, eye[1] - qy, eye[2] - qz
+        norm = np.sqrt(lx * lx + ly * ly + lz * lz)
+        d = abs(t[k, T_N] * lx + t[k, T_N + 1] * ly + t[k, T_N + 2] * lz) / norm
+        lit = ambient + diffuse * d
+        spec = ks * d ** shininess if specular else 0.0
+    if textured:
+        tu = b0 * t[k, T_UV] + b1 * t[k, T_UV + 2] + b2 * t[k, T_UV + 4]
+        tv = b0 * t[k, T_UV + 1] + b1 * t[k, T_UV + 3] + b2 * t[k, T_UV + 5]
+        return _texel_luma(texture, tu, tv, lit, spec)
+    return _luma(albedo, albedo, albedo, lit, spec)
 
 
 @njit(cache=True)
-def _texel(tex, u, v):
-    """Bilinear, repeat-wrapped texture colour (3 floats on 0..1); uv origin bottom-left,
-    texture row 0 at the top."""
+def shade_region(t, ids, c_lo, c_hi, r_lo, r_hi, eye, consts, texture, background, out):
+    """Luminance of every pixel of the region from ``ids`` (row of ``t`` or -1) into
+    ``out`` (indexed from (r_lo, c_lo), like ``ids``)."""
+    for r in range(r_lo, r_hi + 1):
+        py = r + 0.5
+        for c in range(c_lo, c_hi + 1):
+            k = ids[r - r_lo, c - c_lo]
+            if k < 0:
+                out[r - r_lo, c - c_lo] = background
+            else:
+                out[r - r_lo, c - c_lo] = shade_pixel(t, k, c + 0.5, py, eye, consts, texture)
+
+
+@njit(cache=True)
+def _texel_luma(tex, u, v, lit, spec):
+    """Bilinear, repeat-wrapped texture colour (uv origin bottom-left, texture row 0 at
+    the top), lit, quantised, as luminance."""
     h, w = tex.shape[0], tex.shape[1]
     x = u * w - 0.5
     y = (1.0 - v) * h - 0.5
@@ -209,82 +253,129 @@ def _texel(tex, u, v):
     ax, ay = x - fx, y - fy
     c0, r0 = int(fx) % w, int(fy) % h
     c1, r1 = (c0 + 1) % w, (r0 + 1) % h
-    out = np.empty(3)
-    for k in range(3):
-        top = tex[r0, c0, k] * (1.0 - ax) + tex[r0, c1, k] * ax
-        bottom = tex[r1, c0, k] * (1.0 - ax) + tex[r1, c1, k] * ax
-        out[k] = (top * (1.0 - ay) + bottom * ay) / 255.0
-    return out
+    return _luma(_bilerp(tex, r0, c0, r1, c1, ax, ay, 0), _bilerp(tex, r0, c0, r1, c1, ax, ay, 1),
+                 _bilerp(tex, r0, c0, r1, c1, ax, ay, 2), lit, spec)
 
 
 @njit(cache=True)
-def _to_luma(base, lit, spec):
-    """8-bit quantised colour base * lit + spec, then its luminance on 0..255."""
-    y = 0.0
-    for k in range(3):
-        c = min(max(base[k] * lit + spec, 0.0), 1.0)
-        y += np.floor(c * 255.0 + 0.5) * (0.299, 0.587, 0.114)[k]
+def _bilerp(tex, r0, c0, r1, c1, ax, ay, k):
+    top = tex[r0, c0, k] * (1.0 - ax) + tex[r0, c1, k] * ax
+    bottom = tex[r1, c0, k] * (1.0 - ax) + tex[r1, c1, k] * ax
+    return (top * (1.0 - ay) + bottom * ay) / 255.0
+
+
+@njit(cache=True)
+def _luma(r, g, b, lit, spec):
+    """8-bit quantised colour (r, g, b) * lit + spec, then its luminance on 0..255."""
+    y = np.floor(min(max(r * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * 0.299
+    y += np.floor(min(max(g * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * 0.587
+    y += np.floor(min(max(b * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * 0.114
     return y
 
 
-@njit(cache=True, parallel=True)
-def _shade_kernel(ids, screen, positions, faces, face_normals, eyes, vertex_light,
-                  gouraud, specular, ambient, diffuse, ks, shininess, albedo,
-                  uv, texture, textured, background):
-    """Luminance per pixel of the face in ``ids``.
+@njit(cache=True)
+def _fill_rows(t, s, positions, faces, face_normals, light, uv, gouraud, textured, shade):
+    """Table rows of all ``faces`` in one view from per-vertex arrays: screen ``s``
+    (n, 4), ``light`` (n, 4) (gouraud) and ``uv`` (n, 2) (textured); screen coordinates
+    only unless ``shade``."""
+    for f in range(faces.shape[0]):
+        for j in range(3):
+            i = faces[f, j]
+            t[f, T_X + j] = s[i, 0]
+            t[f, T_Y + j] = s[i, 1]
+            t[f, T_Z + j] = s[i, 2]
+            t[f, T_W + j] = s[i, 3]
+            if not shade:
+                continue
+            for d in range(3):
+                t[f, T_P + 3 * j + d] = positions[i, d]
+            if gouraud:
+                for d in range(4):
+                    t[f, T_L + 4 * j + d] = light[i, d]
+            if textured:
+                t[f, T_UV + 2 * j] = uv[i, 0]
+                t[f, T_UV + 2 * j + 1] = uv[i, 1]
+        if shade and not gouraud:
+            for d in range(3):
+                t[f, T_N + d] = face_normals[f, d]
 
-    ids : (V, H, W) int32; screen : (V, n, 4); positions : (n, 3); faces : (m, 3);
-    face_normals : (m, 3); eyes : (V, 3); vertex_light : (V, n, 4) float64 holding
-    (lit front, spec front, lit back, spec back); uv : (n, 2); texture : (h, w, c)
-    uint8. Returns (V, H, W) float64.
+
+@njit(cache=True, parallel=True)
+def _render_kernel(screen, positions, faces, face_normals, light, uv, texture, eyes, consts,
+                   cull_front, width, height, background, shade):
+    """Face index per pixel (-1 empty) and, with ``shade``, luminance, for every view.
+
+    screen : (V, n, 4); faces : (m, 3) int32; light : (V, n, 4) (gouraud only);
+    cull_front : (V,) bool. Views run in parallel; each is independent, so the result
+    does not depend on the number of threads.
     """
-    n_views, height, width = ids.shape
-    out = np.empty((n_views, height, width))
+    n_views, m = screen.shape[0], faces.shape[0]
+    gouraud, textured = consts[6] != 0.0, consts[7] != 0.0
+    ids = np.full((n_views, height, width), -1, np.int32)
+    lum = np.full((n_views if shade else 0, height, width), background)
     for v in prange(n_views):
-        s = screen[v]
-        ex, ey, ez = eyes[v, 0], eyes[v, 1], eyes[v, 2]
-        base = np.full(3, albedo)
-        for r in range(height):
-            py = r + 0.5
-            for c in range(width):
-                f = ids[v, r, c]
-                if f < 0:
-                    out[v, r, c] = background
-                    continue
-                px = c + 0.5
-                i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-                b0, b1, b2 = _weights(s, i0, i1, i2, px, py)
-                if gouraud:
-                    x0, y0 = s[i0, 0], s[i0, 1]
-                    area = ((s[i1, 0] - x0) * (s[i2, 1] - y0)
-                            - (s[i2, 0] - x0) * (s[i1, 1] - y0))
-                    k = 0 if area < 0.0 else 2  # y-down clockwise == GL front face
-                    lit = (b0 * vertex_light[v, i0, k] + b1 * vertex_light[v, i1, k]
-                           + b2 * vertex_light[v, i2, k])
-                    spec = (b0 * vertex_light[v, i0, k + 1] + b1 * vertex_light[v, i1, k + 1]
-                            + b2 * vertex_light[v, i2, k + 1])
-                else:
-                    qx = b0 * positions[i0, 0] + b1 * positions[i1, 0] + b2 * positions[i2, 0]
-                    qy = b0 * positions[i0, 1] + b1 * positions[i1, 1] + b2 * positions[i2, 1]
-                    qz = b0 * positions[i0, 2] + b1 * positions[i1, 2] + b2 * positions[i2, 2]
-                    lx, ly, lz = ex - qx, ey - qy, ez - qz
-                    norm = np.sqrt(lx * lx + ly * ly + lz * lz)
-                    d = abs(face_normals[f, 0] * lx + face_normals[f, 1] * ly
-                            + face_normals[f, 2] * lz) / norm
-                    lit = ambient + diffuse * d
-                    spec = ks * d ** shininess if specular else 0.0
-                if textured:
-                    tu = b0 * uv[i0, 0] + b1 * uv[i1, 0] + b2 * uv[i2, 0]
-                    tv = b0 * uv[i0, 1] + b1 * uv[i1, 1] + b2 * uv[i2, 1]
-                    out[v, r, c] = _to_luma(_texel(texture, tu, tv), lit, spec)
-                else:
-                    out[v, r, c] = _to_luma(base, lit, spec)
-    return out
+        t = np.empty((m, ROW))
+        _fill_rows(t, screen[v], positions, faces, face_normals,
+                   light[v] if gouraud and shade else light[0], uv, gouraud, textured, shade)
+        depth = np.full((height, width), np.inf)
+        for k in range(m):
+            scan_row(t, k, 0, width - 1, 0, height - 1, cull_front[v], depth, ids[v])
+        if shade:
+            shade_region(t, ids[v], 0, width - 1, 0, height - 1, eyes[v], consts, texture,
+                         background, lum[v])
+    return ids, lum
 
 
 # -- public API ---------------------------------------------------------------------------
 
-def face_id_buffers(mesh, cameras, width: int = 256, height: int = 256) -> np.ndarray:
+def _render(mesh, cameras, width, height, shading, specular, constants, cull_front, shade):
+    if shading not in SHADINGS:
+        raise ValueError(f"shading must be one of {SHADINGS}, got {shading!r}")
+    cameras = list(cameras)
+    width, height = int(width), int(height)
+    if width < 1 or height < 1:
+        raise ValueError(f"image size must be positive, got {width} x {height}")
+    cull = np.zeros(len(cameras), np.bool_)
+    if cull_front is not None:
+        cull[:] = np.asarray(cull_front, dtype=np.bool_).reshape(-1)
+    if constants is None:
+        from metrics.render import DEFAULT_CONSTANTS as constants
+    if not cameras or mesh.n_faces == 0:
+        ids = np.full((len(cameras), height, width), -1, np.int32)
+        return ids, np.full(ids.shape if shade else (0, height, width), float(BACKGROUND))
+    positions = np.ascontiguousarray(mesh.positions, dtype=np.float64)
+    faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
+    screen = _project(positions, cameras, width, height)
+    eyes = np.stack([np.asarray(c.eye, dtype=np.float64) for c in cameras])
+    gouraud = shading == "gouraud"
+    textured = bool(mesh.has_texture)
+    consts = shading_constants(constants, specular, gouraud, textured)
+    if gouraud and shade:
+        light = vertex_light(positions, np.asarray(mesh.vertex_normals, dtype=np.float64),
+                             eyes, consts[0], consts[1], consts[2], consts[3], specular)
+    else:
+        light = np.zeros((1, 1, 4))
+    face_n = (np.ascontiguousarray(mesh.face_normals, dtype=np.float64)
+              if not gouraud and shade else np.zeros((1, 3)))
+    if textured and shade:
+        uv = np.ascontiguousarray(mesh.uv, dtype=np.float64)
+        texture = np.ascontiguousarray(mesh.texture[:, :, :3])
+    else:
+        uv, texture = np.zeros((1, 2)), np.zeros((1, 1, 3), np.uint8)
+        consts[7] = 0.0
+    return _render_kernel(screen, positions, faces, face_n, light, uv, texture, eyes, consts,
+                          cull, width, height, float(BACKGROUND), shade)
+
+
+def shading_constants(constants, specular: bool, gouraud: bool, textured: bool) -> np.ndarray:
+    """The ``consts`` vector of :func:`shade_pixel`."""
+    return np.array([constants.ambient, constants.diffuse, constants.specular,
+                     constants.shininess, constants.albedo, float(bool(specular)),
+                     float(bool(gouraud)), float(bool(textured))], np.float64)
+
+
+def face_id_buffers(mesh, cameras, width: int = 256, height: int = 256,
+                    cull_front=None) -> np.ndarray:
     """The index of the face seen at each pixel centre, for each camera.
 
     Parameters
@@ -294,6 +385,8 @@ def face_id_buffers(mesh, cameras, width: int = 256, height: int = 256) -> np.nd
     cameras : sequence of V metrics.views.Camera
     width, height : int
         Image size in pixels.
+    cull_front : sequence of V bool, optional
+        Views that skip front faces (front-face culling), e.g. to see interiors.
 
     Returns
     -------
@@ -301,24 +394,16 @@ def face_id_buffers(mesh, cameras, width: int = 256, height: int = 256) -> np.nd
         Face indices into ``mesh.faces``, -1 where no face covers the pixel centre; row
         0 is the top of the image. Same rasterisation as :func:`rasterize_luminance`.
     """
-    cameras, width, height = _check(mesh, cameras, width, height)
-    ids, _ = _ids_and_screen(mesh, cameras, width, height)
+    from metrics.render import DEFAULT_CONSTANTS
+
+    ids, _ = _render(mesh, cameras, width, height, "flat", False, DEFAULT_CONSTANTS,
+                     cull_front, shade=False)
     return ids
-
-
-def _ids_and_screen(mesh, cameras, width, height):
-    if not cameras:
-        return np.empty((0, height, width), np.int32), None
-    if mesh.n_faces == 0:
-        return np.full((len(cameras), height, width), -1, np.int32), None
-    screen = _project(mesh.positions, cameras, width, height)
-    faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
-    return _raster_kernel(screen, faces, width, height), screen
 
 
 def rasterize_luminance(mesh, cameras, width: int = 256, height: int = 256,
                         shading: str = "flat", specular: bool = False,
-                        constants=None) -> np.ndarray:
+                        constants=None, cull_front=None) -> np.ndarray:
     """Luminance images of ``mesh``, shaded as the evaluation renderer without MSAA.
 
     Parameters
@@ -335,6 +420,8 @@ def rasterize_luminance(mesh, cameras, width: int = 256, height: int = 256,
     constants : metrics.render.ShadingConstants, optional
         Ambient, diffuse, albedo, specular and shininess; the defaults are the
         protocol's (ambient 0.1, diffuse 0.9, albedo 1).
+    cull_front : sequence of V bool, optional
+        Views that skip front faces (Lindstrom & Turk 2000 §5.2's interior views).
 
     Returns
     -------
@@ -342,34 +429,6 @@ def rasterize_luminance(mesh, cameras, width: int = 256, height: int = 256,
         Y = 0.299 R + 0.587 G + 0.114 B of the 8-bit colour on 0..255; 128 where no
         face covers the pixel centre; row 0 at the top.
     """
-    if shading not in SHADINGS:
-        raise ValueError(f"shading must be one of {SHADINGS}, got {shading!r}")
-    cameras, width, height = _check(mesh, cameras, width, height)
-    if constants is None:
-        from metrics.render import DEFAULT_CONSTANTS as constants
-    ids, screen = _ids_and_screen(mesh, cameras, width, height)
-    if screen is None:
-        return np.full(ids.shape, float(BACKGROUND))
-    positions = np.ascontiguousarray(mesh.positions, dtype=np.float64)
-    faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
-    eyes = np.stack([np.asarray(c.eye, dtype=np.float64) for c in cameras])
-    a, d = float(constants.ambient), float(constants.diffuse)
-    ks, shin = float(constants.specular), float(constants.shininess)
-    gouraud = shading == "gouraud"
-    if gouraud:
-        light = vertex_light(positions, np.asarray(mesh.vertex_normals, dtype=np.float64),
-                             eyes, a, d, ks, shin, specular)
-        face_n = np.zeros((1, 3))
-    else:
-        light = np.zeros((1, 1, 4))
-        face_n = np.ascontiguousarray(mesh.face_normals, dtype=np.float64)
-    textured = bool(mesh.has_texture)
-    if textured:
-        uv = np.ascontiguousarray(mesh.uv, dtype=np.float64)
-        texture = np.ascontiguousarray(mesh.texture[:, :, :3])
-    else:
-        uv = np.zeros((1, 2))
-        texture = np.zeros((1, 1, 3), np.uint8)
-    return _shade_kernel(ids, screen, positions, faces, face_n, eyes, light, gouraud,
-                         bool(specular), a, d, ks, shin, float(constants.albedo), uv,
-                         texture, textured, float(BACKGROUND))
+    _, lum = _render(mesh, cameras, width, height, shading, specular, constants, cull_front,
+                     shade=True)
+    return lum

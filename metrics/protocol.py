@@ -11,7 +11,9 @@
    bounding-box diagonal;
 4. silhouettes: the share of edges that are silhouettes in exactly i of the 20
    dodecahedron views, and its mean ⟨x⟩ (Figure 7);
-5. topology: faces, render and welded vertices, boundary edges, seam cracks.
+5. topology: faces, render and welded vertices, boundary edges, seam cracks;
+6. model-specific metrics where the original's metadata defines them
+   (:func:`model_metrics`: the share of faces on the exterior, §5.2).
 
 Bump :data:`PROTOCOL_VERSION` whenever any of this changes a number; results of
 different protocol versions are never compared.
@@ -29,8 +31,8 @@ import numpy as np
 
 from bench.mesh import Mesh
 
-__all__ = ["PROTOCOL_VERSION", "Protocol", "Evaluation", "evaluate", "original_images",
-           "cache_dir"]
+__all__ = ["PROTOCOL_VERSION", "Protocol", "Evaluation", "evaluate", "model_metrics",
+           "original_images", "cache_dir"]
 
 PROTOCOL_VERSION = "1"
 
@@ -88,6 +90,26 @@ def render_views(mesh: Mesh, original: Mesh, protocol: Protocol) -> np.ndarray:
                            specular=protocol.specular)
 
 
+def render_per_view(meshes: list[Mesh], original: Mesh, protocol: Protocol) -> np.ndarray:
+    """The protocol images of a view-dependent result: view i shows ``meshes[i]``.
+
+    Returns
+    -------
+    ndarray of shape (24, R, R, 3) uint8
+    """
+    from metrics.render import get_renderer
+    from metrics.views import protocol_cameras
+
+    cameras = protocol_cameras(original)
+    if len(meshes) != len(cameras):
+        raise ValueError(f"a view-dependent result needs one mesh per protocol view "
+                         f"({len(cameras)}), got {len(meshes)}")
+    renderer = get_renderer(protocol.resolution, protocol.resolution, protocol.msaa)
+    return np.concatenate([renderer.render(m, [c], shading=protocol.shading,
+                                           specular=protocol.specular)
+                           for m, c in zip(meshes, cameras)])
+
+
 def original_images(original: Mesh, protocol: Protocol, cache: Path | None = None) -> np.ndarray:
     """The original's protocol images, rendered once and cached on disk."""
     folder = (cache or cache_dir()) / "originals"
@@ -105,8 +127,22 @@ def original_images(original: Mesh, protocol: Protocol, cache: Path | None = Non
     return images
 
 
+def model_metrics(original: Mesh, simplified: Mesh) -> dict:
+    """Metrics that only some models define (their metadata says how), keyed by name.
+
+    A metric undefined for ``original`` is left out rather than recorded as NaN, so
+    records, results.csv and the report show it only where it means something. Today:
+    ``exterior_share`` (:mod:`metrics.interior`).
+    """
+    from metrics import interior
+
+    share = interior.exterior_share(original, simplified)
+    return {} if np.isnan(share) else {"exterior_share": share}
+
+
 def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
-             reference_images: np.ndarray | None = None) -> Evaluation:
+             reference_images: np.ndarray | None = None,
+             view_meshes: list[Mesh] | None = None) -> Evaluation:
     """Measure ``simplified`` against ``original`` under ``protocol``.
 
     Parameters
@@ -115,6 +151,10 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
     protocol : Protocol
     reference_images : ndarray of shape (24, R, R, 3) uint8, optional
         The original's images, if already at hand (else from :func:`original_images`).
+    view_meshes : list of 24 Mesh, optional
+        A view-dependent method's per-view results: view i is imaged with
+        ``view_meshes[i]``; geometry, silhouettes and topology still use ``simplified``
+        (the method's view-independent result).
     """
     from metrics import geometry, image, silhouette, topology
     from metrics.views import silhouette_cameras
@@ -125,7 +165,8 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
     seconds["original_images"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    imgs = render_views(simplified, original, protocol)
+    imgs = (render_views(simplified, original, protocol) if view_meshes is None
+            else render_per_view(view_meshes, original, protocol))
     seconds["render"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -148,6 +189,7 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
     metrics = {"d_rms": d, "ssim": s, "flip": f, **h, "hausdorff_max": h["symmetric_max"],
                "silhouette_mean": mean}
     metrics.update(topology.counts(original, simplified))
+    metrics.update(model_metrics(original, simplified))
     return Evaluation(metrics=metrics,
                       per_view={"d_rms": d_views.tolist(), "ssim": s_views.tolist(),
                                 "flip": f_views.tolist()},

@@ -13,7 +13,7 @@ from bench.method import parse_params, resolve_target
 from bench.models import resolve_model
 from bench.registry import registry
 from bench.runner import execute, plan
-from bench.suites import get_suite
+from bench.suites import evaluation_protocols, get_suite
 
 DEFAULT_RATIOS = (0.02, 0.01)
 
@@ -28,9 +28,12 @@ def add_parser(sub, name: str) -> None:
     budget.add_argument("--ratios", help="comma-separated fractions of each model's faces "
                         "(default: 0.02,0.01)")
     p.add_argument("--shading", choices=["flat", "gouraud"], default=None,
-                   help="evaluation shading (default: flat, or the suite's)")
-    p.add_argument("--specular", action="store_true", help="add Blinn-Phong specular")
-    p.add_argument("--suite", help="a named experiment (sets models, methods and budgets)")
+                   help="evaluation shading (default: flat, or the suite's protocols; "
+                   "given, it replaces them)")
+    p.add_argument("--specular", action="store_true", help="add Blinn-Phong specular "
+                   "(to every protocol of a suite)")
+    p.add_argument("--suite", help="a named experiment (sets models, methods, budgets and "
+                   "evaluation protocols; the options above override them)")
     p.add_argument("--out", help="run directory (default: reports/run-YYYYmmdd-HHMMSS)")
     p.add_argument("--jobs", "-j", type=int, default=os.cpu_count() or 1,
                    help="worker processes (default: CPU count)")
@@ -70,8 +73,6 @@ def parse_variants(text: str | None) -> list[tuple[str, dict]]:
 
 
 def run(args) -> int:
-    from metrics.protocol import Protocol
-
     suite = get_suite(args.suite) if args.suite else None
     models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
     methods = registry("method")
@@ -96,15 +97,16 @@ def run(args) -> int:
                 suite.ratios if suite and suite.ratios else DEFAULT_RATIOS)
             budgets[m] = [resolve_target(mesh.n_faces, ratio=r) for r in ratios]
 
-    protocol = Protocol(shading=args.shading or (suite.shading if suite else "flat"),
-                        specular=args.specular)
+    protocols = evaluation_protocols(suite, args.shading, args.specular)
     out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
-    jobs = plan(models, variants, budgets, protocol)
+    jobs = plan(models, variants, budgets, protocols)
     if args.resume:
         jobs = [j for j in jobs if not (out / "records" / f"{j.key}.json").exists()]
     out.mkdir(parents=True, exist_ok=True)
-    print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets) "
-          f"with {args.jobs} workers -> {out}", file=sys.stderr)
+    shadings = " x " + "/".join(
+        p.shading + ("+specular" if p.specular else "") for p in protocols) + " shading"
+    print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets"
+          f"{shadings}) with {args.jobs} workers -> {out}", file=sys.stderr)
     execute(jobs, out, workers=args.jobs, timeout=args.timeout)
     return finish(out, build_report=not args.no_report)
 
@@ -118,6 +120,10 @@ def finish(out: Path, build_report: bool = True) -> int:
     table = records_table(records)
     cols = ["model", "method", "target_faces", "faces", "d_rms", "hausdorff_mean",
             "seam_cracks", "seconds", "status"]
+    if table.shading.nunique() > 1:
+        cols.insert(2, "shading")
+    if table.exterior_share.notna().any():
+        cols.insert(cols.index("seconds"), "exterior_share")
     with_pd_options(lambda: print(table[cols].to_string(index=False)))
     failed = table[table.status == "failed"]
     print(f"bench: wrote {csv}", file=sys.stderr)

@@ -1,0 +1,734 @@
+"""The image term of the engine: Lindstrom & Turk 2000, §4.2.
+
+Image-driven simplification costs a collapse by how much it changes the mean-square
+luminance error against images of the original, over ``V`` views (equation 8):
+
+    f(e, k) = sum_h sum_{(i, j) in R_h} (y0 - y^{k+1})^2 - (y0 - y^k)^2
+
+where ``R_h`` is view ``h``'s pixel rectangle around the triangles the collapse touches.
+This module keeps, inside the engine's numba loop, the images ``Y`` of the *current*
+mesh and everything needed to re-render a rectangle of them:
+
+* per view and vertex the screen position, per face and view its pixel bounding box,
+  per vertex its unit normal and (gouraud) its lighting in every view;
+* a per-view *tile index* (16 x 16-pixel tiles, each listing the faces whose box
+  overlaps it) to find the faces under a rectangle;
+* :func:`image_cost` renders each view's rectangle as it would look after a *simulated*
+  collapse (the kept vertex at its new place, the removed faces gone, new texture
+  coordinates and vertex normals) into scratch buffers and returns equation 8;
+  :func:`image_commit` does the same render for the collapse actually made and writes
+  it into ``Y``. Re-rendering the rectangle from every face that overlaps it is the
+  "un-rendering" of §4.2.3: surfaces hidden behind removed faces reappear.
+
+Rendering is :mod:`methods.raster`'s: each face to draw becomes a row of the per-face
+table and the same :func:`~methods.raster.scan_row` and
+:func:`~methods.raster.shade_region` do the pixels, in increasing face index (depth ties
+go to the lower index, as in a full render). Faces keep their indices for the life of
+the engine (a collapse only deletes faces and renames corners), so a region re-render
+sees the same faces in the same order as a from-scratch render of the current mesh, and
+every per-vertex quantity is computed by the same function in both cases (vertex normals
+summed over incident faces in increasing face index). The maintained images therefore
+equal a from-scratch render **bit for bit**; ``simplify_mesh(..., verify=True)`` checks
+it at the end of a run.
+
+The rectangle of a view is the union of the old and the new pixel boxes of every face
+around the edge (the paper's ``[[e]] ∪ [[v]]``); with gouraud shading also the boxes of
+the faces around the vertices whose normal changes (the paper's footnote 3).
+
+Tile index versus the paper's row/column buckets: the paper keeps a hash table of
+triangles per pixel row and column and intersects the unions over the rectangle with
+time stamps. Tiles need no intersection (one traversal), list a small face in one to
+four tiles instead of every row and column it spans, and live in flat arrays that numba
+traverses quickly. Each tile has spare capacity; a face whose box grows is appended to
+the new tiles it reaches, stale entries are filtered by the box test, and the index is
+rebuilt only when a tile overflows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+from methods.raster import (ROW, T_L, T_N, T_P, T_UV, T_W, T_X, T_Y, T_Z, scan_row, shade_pixel,
+                            shade_region)
+
+__all__ = ["ImageTerm", "TILE", "STAT_NAMES", "dummy_state", "new_state", "full_render"]
+
+#: Side of the square tiles of the per-view face index, in pixels.
+TILE = 16
+#: Counters kept in the state's ``stats`` array.
+STAT_NAMES = ("image_evaluations", "pixels_shaded", "face_rows", "raster_cycles",
+              "run_cycles", "tile_rebuilds", "commits")
+_MAX_RING = 256  # vertices whose normal a collapse changes (more: 2-ring of a huge fan)
+
+
+@intrinsic
+def cycles(typingctx):
+    """The CPU cycle counter (``llvm.readcyclecounter``), to split run time by part."""
+    sig = types.int64()
+
+    def codegen(context, builder, signature, args):
+        fnty = ir.FunctionType(ir.IntType(64), [])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.readcyclecounter")
+        return builder.call(fn, [])
+
+    return sig, codegen
+
+
+# -- per-vertex and per-face quantities ---------------------------------------------------
+
+@njit(cache=True)
+def project(M, h, p, width, height, out):
+    """Screen (x, y pixels with y down, NDC z, clip w) of point ``p`` in view ``h``."""
+    cx = M[h, 0, 0] * p[0] + M[h, 0, 1] * p[1] + M[h, 0, 2] * p[2] + M[h, 0, 3]
+    cy = M[h, 1, 0] * p[0] + M[h, 1, 1] * p[1] + M[h, 1, 2] * p[2] + M[h, 1, 3]
+    cz = M[h, 2, 0] * p[0] + M[h, 2, 1] * p[1] + M[h, 2, 2] * p[2] + M[h, 2, 3]
+    cw = M[h, 3, 0] * p[0] + M[h, 3, 1] * p[1] + M[h, 3, 2] * p[2] + M[h, 3, 3]
+    inv_w = 1.0 / cw if cw > 0.0 else 0.0
+    out[0] = (cx * inv_w + 1.0) * (0.5 * width)
+    out[1] = (1.0 - cy * inv_w) * (0.5 * height)
+    out[2] = cz * inv_w
+    out[3] = cw
+
+
+@njit(cache=True)
+def row_box(t, k, width, height, out):
+    """Pixel box (c0, c1, r0, r1) that :func:`methods.raster.scan_row` visits for row
+    ``k`` (c0 > c1 when it visits nothing)."""
+    out[0], out[1], out[2], out[3] = 0, -1, 0, -1
+    if t[k, T_W] <= 0.0 or t[k, T_W + 1] <= 0.0 or t[k, T_W + 2] <= 0.0:
+        return
+    x0, x1, x2 = t[k, T_X], t[k, T_X + 1], t[k, T_X + 2]
+    y0, y1, y2 = t[k, T_Y], t[k, T_Y + 1], t[k, T_Y + 2]
+    if not (np.isfinite(x0) and np.isfinite(x1) and np.isfinite(x2) and np.isfinite(y0)
+            and np.isfinite(y1) and np.isfinite(y2)):
+        return
+    out[0] = int(min(max(np.ceil(min(x0, x1, x2) - 0.5), 0.0), float(width)))
+    out[1] = int(max(min(np.floor(max(x0, x1, x2) - 0.5), width - 1.0), -1.0))
+    out[2] = int(min(max(np.ceil(min(y0, y1, y2) - 0.5), 0.0), float(height)))
+    out[3] = int(max(min(np.floor(max(y0, y1, y2) - 0.5), height - 1.0), -1.0))
+
+
+@njit(cache=True)
+def _light(px, py, pz, n, eye, consts, out, o):
+    """Headlight terms of a vertex for both sides, as :func:`methods.raster.vertex_light`:
+    out[o:o+4] = (lit front, spec front, lit back, spec back)."""
+    tx, ty, tz = eye[0] - px, eye[1] - py, eye[2] - pz
+    length = np.sqrt(tx * tx + ty * ty + tz * tz)
+    dot = (tx * n[0] + ty * n[1] + tz * n[2]) / length
+    for side in range(2):
+        c = max(dot if side == 0 else -dot, 0.0)
+        out[o + 2 * side] = consts[0] + consts[1] * c
+        out[o + 2 * side + 1] = consts[2] * c ** consts[3] if consts[5] != 0.0 else 0.0
+
+
+@njit(cache=True)
+def _sort_small(a, n):
+    for i in range(1, n):
+        x = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > x:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = x
+
+
+@njit(cache=True)
+def _pos(x, u, v, p, P, d):
+    return p[d] if u >= 0 and (x == u or x == v) else P[x, d]
+
+
+@njit(cache=True)
+def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
+    """Unit area-weighted normal of vertex ``x`` after collapsing ``u`` into ``v`` at
+    ``p`` (``u = -1``: the current mesh). Faces are summed in increasing index."""
+    n = 0
+    for side in range(2):
+        y = np.int64(x) if side == 0 else np.int64(u)
+        if side == 1 and not (u >= 0 and x == v):
+            break
+        c = vhead[y]
+        while c != -1:
+            f = c // 3
+            if falive[f]:
+                edge = u >= 0 and ((F[f, 0] == u or F[f, 1] == u or F[f, 2] == u) and
+                                   (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v))
+                if not edge and n < buf.shape[0]:
+                    buf[n] = f
+                    n += 1
+            c = cnext[c]
+    _sort_small(buf, n)
+    sx = sy = sz = 0.0
+    for i in range(n):
+        f = buf[i]
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        ax, ay, az = _pos(a, u, v, p, P, 0), _pos(a, u, v, p, P, 1), _pos(a, u, v, p, P, 2)
+        e1x, e1y, e1z = (_pos(b, u, v, p, P, 0) - ax, _pos(b, u, v, p, P, 1) - ay,
+                         _pos(b, u, v, p, P, 2) - az)
+        e2x, e2y, e2z = (_pos(c, u, v, p, P, 0) - ax, _pos(c, u, v, p, P, 1) - ay,
+                         _pos(c, u, v, p, P, 2) - az)
+        sx += e1y * e2z - e1z * e2y
+        sy += e1z * e2x - e1x * e2z
+        sz += e1x * e2y - e1y * e2x
+    length = np.sqrt(sx * sx + sy * sy + sz * sz)
+    if length > 0.0:
+        out[0], out[1], out[2] = sx / length, sy / length, sz / length
+    else:
+        out[0] = out[1] = out[2] = 0.0
+
+
+@njit(cache=True)
+def fill_row(t, k, f, h, u, v, sp, p, P, F, FW, uv, S, L, vslot, ov_light, wslot, new_uv,
+             wfrom, wto, npairs, consts):
+    """Row ``k`` of table ``t``: face ``f`` in view ``h`` after collapsing ``u`` into
+    ``v`` at ``p`` (screen ``sp``), with the new lighting of the vertices in ``vslot``
+    and the new texture coordinates of the wedges in ``wslot``; ``u = -1`` for the
+    current mesh."""
+    gouraud, textured = consts[6] != 0.0, consts[7] != 0.0
+    for j in range(3):
+        x = F[f, j]
+        moved = u >= 0 and (x == u or x == v)
+        for d in range(3):
+            t[k, T_P + 3 * j + d] = p[d] if moved else P[x, d]
+        if moved:
+            t[k, T_X + j], t[k, T_Y + j], t[k, T_Z + j], t[k, T_W + j] = sp[0], sp[1], \
+                sp[2], sp[3]
+        else:
+            t[k, T_X + j], t[k, T_Y + j], t[k, T_Z + j], t[k, T_W + j] = S[h, x, 0], \
+                S[h, x, 1], S[h, x, 2], S[h, x, 3]
+        if gouraud:
+            slot = vslot[v if moved else x]
+            for d in range(4):
+                t[k, T_L + 4 * j + d] = ov_light[h, slot, d] if slot >= 0 else L[h, x, d]
+        if textured:
+            w = FW[f, j]
+            if u >= 0 and x == u:
+                for i in range(npairs):
+                    if wfrom[i] == w:
+                        w = wto[i]
+                        break
+            s = wslot[w]
+            t[k, T_UV + 2 * j] = new_uv[s, 0] if s >= 0 else uv[w, 0]
+            t[k, T_UV + 2 * j + 1] = new_uv[s, 1] if s >= 0 else uv[w, 1]
+    if not gouraud:
+        e1x = t[k, T_P + 3] - t[k, T_P]
+        e1y = t[k, T_P + 4] - t[k, T_P + 1]
+        e1z = t[k, T_P + 5] - t[k, T_P + 2]
+        e2x = t[k, T_P + 6] - t[k, T_P]
+        e2y = t[k, T_P + 7] - t[k, T_P + 1]
+        e2z = t[k, T_P + 8] - t[k, T_P + 2]
+        nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+        length = np.sqrt(nx * nx + ny * ny + nz * nz)
+        inv = 1.0 / length if length > 0.0 else 0.0
+        t[k, T_N], t[k, T_N + 1], t[k, T_N + 2] = nx * inv, ny * inv, nz * inv
+
+
+# -- the tile index -----------------------------------------------------------------------
+
+@njit(cache=True)
+def build_tiles(fbox, falive, tile, nx, ny):
+    """Per view and tile, the live faces whose box overlaps it, with spare room.
+
+    Returns (ptr (V, T + 1), cnt (V, T), items, ibox (V, m, 4) tile ranges listed)."""
+    n_views, m = fbox.shape[0], fbox.shape[1]
+    n_tiles = nx * ny
+    cnt = np.zeros((n_views, n_tiles), np.int64)
+    ibox = np.zeros((n_views, m, 4), np.int32)
+    for h in range(n_views):
+        for f in range(m):
+            ibox[h, f, 0], ibox[h, f, 1], ibox[h, f, 2], ibox[h, f, 3] = 0, -1, 0, -1
+            if not falive[f] or fbox[h, f, 0] > fbox[h, f, 1] or fbox[h, f, 2] > fbox[h, f, 3]:
+                continue
+            ibox[h, f, 0], ibox[h, f, 1] = fbox[h, f, 0] // tile, fbox[h, f, 1] // tile
+            ibox[h, f, 2], ibox[h, f, 3] = fbox[h, f, 2] // tile, fbox[h, f, 3] // tile
+            for ty in range(ibox[h, f, 2], ibox[h, f, 3] + 1):
+                for tx in range(ibox[h, f, 0], ibox[h, f, 1] + 1):
+                    cnt[h, ty * nx + tx] += 1
+    ptr = np.zeros((n_views, n_tiles + 1), np.int64)
+    total = 0
+    for h in range(n_views):
+        for i in range(n_tiles):
+            ptr[h, i] = total
+            total += cnt[h, i] + cnt[h, i] // 2 + 8
+        ptr[h, n_tiles] = total
+    items = np.empty(total, np.int32)
+    cnt[:] = 0
+    for h in range(n_views):
+        for f in range(m):
+            for ty in range(ibox[h, f, 2], ibox[h, f, 3] + 1):
+                for tx in range(ibox[h, f, 0], ibox[h, f, 1] + 1):
+                    i = ty * nx + tx
+                    items[ptr[h, i] + cnt[h, i]] = f
+                    cnt[h, i] += 1
+    return ptr, cnt, items, ibox
+
+
+@njit(cache=True)
+def _tiles_add(tiles, h, f, box, tile, nx):
+    """List face ``f`` in the tiles its new ``box`` reaches; False if a tile is full."""
+    ptr, cnt, items, ibox = tiles
+    if box[0] > box[1] or box[2] > box[3]:
+        return True
+    tx0, tx1, ty0, ty1 = box[0] // tile, box[1] // tile, box[2] // tile, box[3] // tile
+    for ty in range(ty0, ty1 + 1):
+        for tx in range(tx0, tx1 + 1):
+            if ibox[h, f, 0] <= tx <= ibox[h, f, 1] and ibox[h, f, 2] <= ty <= ibox[h, f, 3]:
+                continue  # listed already
+            i = ty * nx + tx
+            if ptr[h, i] + cnt[h, i] >= ptr[h, i + 1]:
+                return False
+            items[ptr[h, i] + cnt[h, i]] = f
+            cnt[h, i] += 1
+    ibox[h, f, 0], ibox[h, f, 1], ibox[h, f, 2], ibox[h, f, 3] = tx0, tx1, ty0, ty1
+    return True
+
+
+@njit(cache=True)
+def _overlaps(box, rect):
+    return not (box[0] > box[1] or box[2] > box[3] or box[1] < rect[0] or box[0] > rect[1]
+                or box[3] < rect[2] or box[2] > rect[3])
+
+
+@njit(cache=True)
+def _gather(tiles, h, rect, fbox, falive, mark, tick, cand, n, tile, nx):
+    """Append to ``cand[n:]`` the live, unmarked faces whose box overlaps ``rect``."""
+    ptr, cnt, items, _ = tiles
+    for ty in range(rect[2] // tile, rect[3] // tile + 1):
+        for tx in range(rect[0] // tile, rect[1] // tile + 1):
+            i = ty * nx + tx
+            for k in range(ptr[h, i], ptr[h, i] + cnt[h, i]):
+                f = items[k]
+                if mark[f] != tick and falive[f] and _overlaps(fbox[h, f], rect):
+                    mark[f] = tick
+                    cand[n] = f
+                    n += 1
+    return n
+
+
+# -- evaluation and commit ----------------------------------------------------------------
+
+@njit(cache=True)
+def _grow(rect, box):
+    if box[0] > box[1] or box[2] > box[3]:
+        return
+    if rect[0] > rect[1]:
+        rect[0], rect[1], rect[2], rect[3] = box[0], box[1], box[2], box[3]
+    else:
+        rect[0], rect[1] = min(rect[0], box[0]), max(rect[1], box[1])
+        rect[2], rect[3] = min(rect[2], box[2]), max(rect[3], box[3])
+
+
+@njit(cache=True)
+def _has(F, f, x):
+    return F[f, 0] == x or F[f, 1] == x or F[f, 2] == x
+
+
+@njit(cache=True)
+def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
+    c = vhead[y]
+    while c != -1:
+        f = c // 3
+        if falive[f] and mark[f] != tk and n < out.shape[0]:
+            mark[f] = tk
+            out[n] = f
+            n += 1
+        c = cnext[c]
+    return n
+
+
+@njit(cache=True)
+def _render_rect(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, npairs,
+                 atick, commit, background):
+    """Render ``cand[:n]`` (sorted) over ``rect`` of view h as the mesh would look after
+    collapsing u into v at p (u = -1: as it is). Pixels whose visible face is the same
+    as now and not marked affected (``amark == atick``) keep their luminance; the others
+    are shaded. With ``commit`` the result goes into ``Y`` and ``IDS``; otherwise returns
+    the change of the squared error (equation 8)."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
+    (mark, tick, cand, t, depth, ids, lum, vslot, ov_light, wslot, new_uv, ring, rects, buf,
+     n3, sp_, box, aff, amark) = iws
+    c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
+    for r in range(r1 - r0 + 1):
+        for c in range(c1 - c0 + 1):
+            depth[r, c] = np.inf
+            ids[r, c] = -1
+    start = cycles()
+    for k in range(n):
+        fill_row(t, k, cand[k], h, u, v, sp, p, P, F, FW, uv, S, L, vslot, ov_light, wslot,
+                 new_uv, wfrom, wto, npairs, consts)
+        scan_row(t, k, c0, c1, r0, r1, cull[h], depth, ids)
+    cost = 0.0
+    shaded = 0
+    for r in range(r0, r1 + 1):
+        for c in range(c0, c1 + 1):
+            k = ids[r - r0, c - c0]
+            f = cand[k] if k >= 0 else -1
+            if f == IDS[h, r, c] and (f < 0 or amark[f] != atick):
+                continue  # the same face, unchanged: the same luminance
+            y = background if k < 0 else shade_pixel(t, k, c + 0.5, r + 0.5, eyes[h],
+                                                     consts, texture)
+            shaded += 1
+            if commit:
+                Y[h, r, c] = y
+                IDS[h, r, c] = f
+            else:
+                a = Y0[h, r, c] - y
+                b = Y0[h, r, c] - Y[h, r, c]
+                cost += a * a - b * b
+    stats[1] += shaded
+    stats[2] += n
+    stats[3] += cycles() - start
+    return cost
+
+
+@njit(cache=True)
+def _candidates(h, rect, n, tiles, fbox, falive, iws, tile, nx):
+    mark, tick, cand = iws[0], iws[1], iws[2]
+    n = _gather(tiles, h, rect, fbox, falive, mark, tick[0], cand, n, tile, nx)
+    cand[:n] = np.sort(cand[:n])
+    return n
+
+
+@njit(cache=True)
+def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfrom, wto,
+               npairs, targets, nt, target_uv, background):
+    """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
+    squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
+    whose texture coordinates become ``target_uv[:nt]``."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
+    (mark, tick, cand, t, depth, ids, lum, vslot, ov_light, wslot, new_uv, ring, rects, buf,
+     n3, sp, box, aff, amark) = iws
+    n_views, height, width = Y.shape
+    gouraud = consts[6] != 0.0
+    tile, nx = TILE, -(-width // TILE)
+    stats[0] += 1
+    for i in range(nt):
+        wslot[targets[i]] = i
+        new_uv[i, 0], new_uv[i, 1] = target_uv[i, 0], target_uv[i, 1]
+    # the faces around the edge ([[e]]; those holding both ends disappear)
+    tick[0] += 1
+    na = _faces_around(u, vhead, cnext, falive, mark, tick[0], aff, 0)
+    na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, na)
+    ns = na
+    nr = 0
+    if gouraud:  # vertices whose normal changes, and the faces they shade (footnote 3)
+        for i in range(na):
+            for j in range(3):
+                x = F[aff[i], j]
+                if x != u and vslot[x] < 0 and nr < ring.shape[0]:
+                    vslot[x] = nr
+                    ring[nr] = x
+                    nr += 1
+        for i in range(nr):
+            x = ring[i]
+            vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, n3)
+            for h in range(n_views):
+                _light(_pos(x, u, v, p, P, 0), _pos(x, u, v, p, P, 1), _pos(x, u, v, p, P, 2),
+                       n3, eyes[h], consts, ov_light[h, i], 0)
+            ns = _faces_around(x, vhead, cnext, falive, mark, tick[0], aff, ns)
+    atick = tick[0]
+    for i in range(ns):
+        amark[aff[i]] = atick
+    cost = 0.0
+    for h in range(n_views):
+        project(M, h, p, width, height, sp)
+        rect = rects[h]
+        rect[0], rect[1], rect[2], rect[3] = 0, -1, 0, -1
+        for i in range(ns):
+            _grow(rect, fbox[h, aff[i]])
+        for i in range(na):
+            f = aff[i]
+            if not (_has(F, f, u) and _has(F, f, v)):
+                fill_row(t, 0, f, h, u, v, sp, p, P, F, FW, uv, S, L, vslot, ov_light, wslot,
+                         new_uv, wfrom, wto, npairs, consts)
+                row_box(t, 0, width, height, box)
+                _grow(rect, box)
+        if rect[0] > rect[1] or rect[2] > rect[3]:
+            continue
+        tick[0] += 1
+        n = 0
+        for i in range(ns):
+            f = aff[i]
+            mark[f] = tick[0]
+            if not (i < na and _has(F, f, u) and _has(F, f, v)):
+                cand[n] = f
+                n += 1
+        n = _candidates(h, rect, n, tiles, fbox, falive, iws, tile, nx)
+        cost += _render_rect(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto,
+                             npairs, atick, False, background)
+    for i in range(nr):
+        vslot[ring[i]] = -1
+    for i in range(nt):
+        wslot[targets[i]] = -1
+    return cost
+
+
+@njit(cache=True)
+def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, valive, img,
+                    tiles, iws):
+    """After collapsing into ``v`` (faces ``removed[:n_removed]`` deleted): update screen
+    positions, normals, lighting and face boxes, note each view's rectangle, and list
+    the changed faces in the tile index. False when a tile overflowed (rebuild the index
+    and call :func:`commit_render`)."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
+    (mark, tick, cand, t, depth, ids, lum, vslot, ov_light, wslot, new_uv, ring, rects, buf,
+     n3, sp, box, aff, amark) = iws
+    n_views, height, width = Y.shape
+    gouraud = consts[6] != 0.0
+    tile, nx = TILE, -(-width // TILE)
+    stats[6] += 1
+    tick[0] += 1
+    na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, 0)
+    for h in range(n_views):
+        rects[h, 0], rects[h, 1], rects[h, 2], rects[h, 3] = 0, -1, 0, -1
+        project(M, h, P[v], width, height, S[h, v])
+        for i in range(n_removed):
+            _grow(rects[h], fbox[h, removed[i]])
+    ns = na
+    if gouraud:
+        nr = 0
+        for i in range(na + n_removed):
+            f = aff[i] if i < na else removed[i - na]
+            for j in range(3):
+                x = F[f, j]
+                if valive[x] and vslot[x] < 0 and nr < ring.shape[0]:
+                    vslot[x] = nr
+                    ring[nr] = x
+                    nr += 1
+        for i in range(nr):
+            x = ring[i]
+            vslot[x] = -1
+            vertex_normal(x, -1, -1, P[x], P, F, vhead, cnext, falive, buf, vn[x])
+            for h in range(n_views):
+                _light(P[x, 0], P[x, 1], P[x, 2], vn[x], eyes[h], consts, L[h, x], 0)
+            ns = _faces_around(x, vhead, cnext, falive, mark, tick[0], aff, ns)
+    for i in range(ns):
+        amark[aff[i]] = tick[0]
+    ok = True
+    none_i = np.full(1, -1, np.int64)
+    for h in range(n_views):
+        for i in range(ns):
+            _grow(rects[h], fbox[h, aff[i]])
+        for i in range(na):
+            f = aff[i]
+            fill_row(t, 0, f, h, -1, -1, sp, P[v], P, F, FW, uv, S, L, vslot, ov_light, wslot,
+                     new_uv, none_i, none_i, 0, consts)
+            row_box(t, 0, width, height, fbox[h, f])
+            _grow(rects[h], fbox[h, f])
+            if ok:
+                ok = _tiles_add(tiles, h, f, fbox[h, f], tile, nx)
+    return ok
+
+
+@njit(cache=True)
+def commit_render(P, F, FW, uv, falive, img, tiles, iws, background):
+    """Re-render every view's rectangle noted by :func:`commit_geometry` into ``Y``."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
+    (mark, tick, cand, t, depth, ids, lum, vslot, ov_light, wslot, new_uv, ring, rects, buf,
+     n3, sp, box, aff, amark) = iws
+    n_views, height, width = Y.shape
+    tile, nx = TILE, -(-width // TILE)
+    none_i = np.full(1, -1, np.int64)
+    atick = tick[0]  # commit_geometry marked the affected faces with it
+    for h in range(n_views):
+        rect = rects[h]
+        if rect[0] > rect[1] or rect[2] > rect[3]:
+            continue
+        tick[0] += 1
+        n = _candidates(h, rect, 0, tiles, fbox, falive, iws, tile, nx)
+        _render_rect(h, rect, n, -1, -1, sp, P[0], P, F, FW, uv, img, iws, none_i, none_i, 0,
+                     atick, True, background)
+
+
+# -- state --------------------------------------------------------------------------------
+
+def _workspace(n_views, nv, m, n_wedges, height, width):
+    return (np.zeros(m, np.int64), np.zeros(1, np.int64), np.empty(m, np.int64),
+            np.empty((max(m, 1), ROW)), np.empty((height, width)),
+            np.empty((height, width), np.int32), np.empty((height, width)),
+            np.full(nv, -1, np.int64), np.zeros((n_views, _MAX_RING, 4)),
+            np.full(n_wedges, -1, np.int64), np.zeros((64, 2)), np.empty(_MAX_RING, np.int64),
+            np.empty((n_views, 4), np.int64), np.empty(1024, np.int64), np.empty(3),
+            np.empty(4), np.empty(4, np.int64), np.empty(8192, np.int64),
+            np.zeros(max(m, 1), np.int64))
+
+
+def dummy_state():
+    """An image state of the right types for engine runs without the image term."""
+    img = (np.zeros((1, 4, 4)), np.zeros((1, 3)), np.zeros(1, np.bool_), np.zeros((1, 1, 1)),
+           np.zeros((1, 1, 1)), np.zeros((1, 1, 4)), np.zeros((1, 1, 4), np.int32),
+           np.zeros((1, 3)), np.zeros((1, 1, 4)), np.zeros(8), np.zeros((1, 1, 3), np.uint8),
+           np.zeros(len(STAT_NAMES), np.int64), np.zeros((1, 1, 1), np.int64))
+    tiles = (np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64), np.zeros(1, np.int32),
+             np.zeros((1, 1, 4), np.int32))
+    return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
+
+
+def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges):
+    """Arrays of an image state; :func:`full_render` fills them.
+
+    Parameters
+    ----------
+    M : ndarray (V, 4, 4)
+        Clip-space transform of each view, applied to engine positions.
+    eyes : ndarray (V, 3)
+        Eye positions in engine coordinates (the headlight).
+    cull : ndarray (V,) bool
+        Views drawn with front faces culled (interior views, §5.2).
+    Y0 : ndarray (V, H, W)
+        Luminance of the original model.
+    consts : ndarray (8,)
+        :func:`methods.raster.shading_constants`.
+    texture : ndarray (h, w, 3) uint8
+    nv, m, n_wedges : int
+        Vertices, faces and wedges of the engine mesh.
+    """
+    n_views, height, width = Y0.shape
+    img = (np.ascontiguousarray(M, np.float64), np.ascontiguousarray(eyes, np.float64),
+           np.ascontiguousarray(cull, np.bool_), np.ascontiguousarray(Y0, np.float64),
+           np.full(Y0.shape, 128.0), np.zeros((n_views, nv, 4)),
+           np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)), np.zeros((n_views, nv, 4)),
+           np.ascontiguousarray(consts, np.float64), np.ascontiguousarray(texture, np.uint8),
+           np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64))
+    return img, _workspace(n_views, nv, m, n_wedges, height, width)
+
+
+@njit(cache=True, parallel=True)
+def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background):
+    """Set every per-vertex and per-face quantity from the mesh and render all views
+    from scratch into ``Y`` and ``IDS`` (the face seen at each pixel, -1 empty)."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
+    n_views, height, width = Y.shape
+    nv, m = P.shape[0], F.shape[0]
+    gouraud = consts[6] != 0.0
+    for i in prange(nv):
+        if not valive[i]:
+            continue
+        for h in range(n_views):
+            project(M, h, P[i], width, height, S[h, i])
+    if gouraud:
+        for i in prange(nv):
+            if not valive[i]:
+                continue
+            buf = np.empty(1024, np.int64)
+            vertex_normal(i, -1, -1, P[i], P, F, vhead, cnext, falive, buf, vn[i])
+            for h in range(n_views):
+                _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], consts, L[h, i], 0)
+    live = np.flatnonzero(falive)
+    ids = IDS
+    for h in prange(n_views):
+        t = np.empty((max(live.shape[0], 1), ROW))
+        depth = np.full((height, width), np.inf)
+        local = np.full((height, width), -1, np.int32)
+        none_i = np.full(1, -1, np.int64)
+        for k in range(live.shape[0]):
+            fill_row(t, k, live[k], h, -1, -1, S[h, 0], P[0], P, F, FW, uv, S, L, iws[7],
+                     iws[8], iws[9], iws[10], none_i, none_i, 0, consts)
+            row_box(t, k, width, height, fbox[h, live[k]])
+            scan_row(t, k, 0, width - 1, 0, height - 1, cull[h], depth, local)
+        shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], consts, texture,
+                     background, Y[h])
+        for r in range(height):
+            for c in range(width):
+                ids[h, r, c] = live[local[r, c]] if local[r, c] >= 0 else -1
+
+
+# -- the Python side ----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ImageTerm:
+    """The image cost of :func:`methods.engine.simplify_mesh` (Lindstrom & Turk 2000).
+
+    Attributes
+    ----------
+    cameras : sequence of V metrics.views.Camera
+        Fitted to the ORIGINAL model, like ``reference``.
+    reference : ndarray (V, H, W)
+        Luminance of the original model in those views (``Y^0``), rendered with the
+        same settings (:func:`methods.raster.rasterize_luminance`).
+    shading : {"flat", "gouraud"}
+    specular : bool
+    cull_front : sequence of V bool, optional
+        Views drawn with front faces culled (§5.2's interior views).
+    weight : float
+        Multiplies equation 8 in the engine's cost sum.
+    constants : metrics.render.ShadingConstants, optional
+    """
+
+    cameras: tuple
+    reference: np.ndarray
+    shading: str = "flat"
+    specular: bool = False
+    cull_front: tuple | None = None
+    weight: float = 1.0
+    constants: object = None
+
+    def _frame(self, lo, scale):
+        """Per-view clip transforms and eyes in engine coordinates (p_world = p * scale
+        + lo)."""
+        n_views, height, width = self.reference.shape
+        affine = np.eye(4)
+        affine[:3, :3] *= scale
+        affine[:3, 3] = lo
+        M = np.stack([c.projection_matrix(width / height) @ c.view_matrix() @ affine
+                      for c in self.cameras])
+        eyes = (np.stack([np.asarray(c.eye, np.float64) for c in self.cameras]) - lo) / scale
+        return M, eyes
+
+    def _new(self, mesh, uv, nv, m, lo, scale):
+        from methods.raster import SHADINGS, shading_constants
+
+        if self.shading not in SHADINGS:
+            raise ValueError(f"shading must be one of {SHADINGS}, got {self.shading!r}")
+        n_views = len(self.cameras)
+        if self.reference.ndim != 3 or self.reference.shape[0] != n_views:
+            raise ValueError(f"reference must hold one image per camera ({n_views}), got "
+                             f"shape {self.reference.shape}")
+        constants = self.constants
+        if constants is None:
+            from metrics.render import DEFAULT_CONSTANTS as constants
+        textured = bool(mesh.has_texture)
+        consts = shading_constants(constants, self.specular, self.shading == "gouraud",
+                                   textured)
+        texture = (np.ascontiguousarray(mesh.texture[:, :, :3]) if textured
+                   else np.zeros((1, 1, 3), np.uint8))
+        cull = np.zeros(n_views, np.bool_)
+        if self.cull_front is not None:
+            cull[:] = np.asarray(self.cull_front, dtype=np.bool_).reshape(-1)
+        M, eyes = self._frame(lo, scale)
+        return new_state(M, eyes, cull, self.reference, consts, texture, nv, m, len(uv))
+
+    def state(self, mesh, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):
+        """The engine's image state for its arrays, with the images rendered."""
+        from methods.raster import BACKGROUND
+
+        img, iws = self._new(mesh, uv, len(P), len(F), lo, scale)
+        full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, float(BACKGROUND))
+        height, width = self.reference.shape[1:]
+        tiles = build_tiles(img[6], falive, TILE, -(-width // TILE), -(-height // TILE))
+        return img, tiles, iws
+
+    def statistics(self, mesh, img, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):
+        """Counters of the run; with ``verify``, a from-scratch render of the final mesh
+        compared with the maintained images."""
+        from methods.raster import BACKGROUND
+
+        counts = dict(zip(STAT_NAMES, (int(x) for x in img[11])))
+        out = {k: counts[k] for k in ("image_evaluations", "pixels_shaded", "face_rows",
+                                      "tile_rebuilds")}
+        out["rasterizer_share"] = (counts["raster_cycles"] / counts["run_cycles"]
+                                   if counts["run_cycles"] > 0 else None)
+        Y, Y0 = img[4], img[3]
+        out["image_sse"] = float(np.sum((Y0 - Y) ** 2))
+        if verify:
+            again, iws = self._new(mesh, uv, len(P), len(F), lo, scale)
+            full_render(again, iws, P, F, FW, uv, falive, vhead, cnext, valive,
+                        float(BACKGROUND))
+            out["image_mismatched_pixels"] = int(np.count_nonzero(again[4] != Y))
+            out["face_id_mismatched_pixels"] = int(np.count_nonzero(again[12] != img[12]))
+        return out

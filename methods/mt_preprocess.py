@@ -1,0 +1,528 @@
+"""Per-node bounds of a Multi-Triangulation (Williams et al. 2003, §4 and §5.2-5.4).
+
+:func:`preprocess` gives every node of a :class:`methods.mt.MultiTriangulation`:
+
+- a bounding sphere of the original triangles mapped to it and of its own triangles;
+- a *silhouette normal cone* (§5.3): the normals of those original triangles and of
+  the node's own triangles, removed and created ("a simplified surface may well
+  contain sharper dihedral angles than the original");
+- a *shading normal cone* (§5.4): the original's vertex normals at those triangles'
+  corners (area-weighted, as the evaluation renderer's Gouraud normals);
+- the luminance range ``L_min..L_max`` of the texels those triangles cover (§4, §5.2),
+  or the material's gray for an untextured mesh;
+- the texture deviation (§2.2) of the node's created triangles from the original.
+
+Choices where the paper is vague:
+
+- *Which original triangles belong to a node.* The paper rasterises the node's
+  triangles into a texture pyramid holding, per texel, the original triangles mapped
+  there. We follow the collapse history instead: every original triangle belongs to
+  exactly one triangle of every cut, the one it was last handed to, and a node's
+  original triangles are those of the triangles it removes; when the node creates its
+  triangles, each original goes to the created triangle nearest to its centroid. The
+  footprint is cumulative, as §5.2 demands, and no parameterisation is needed, so
+  untextured meshes (the bunny) work the same way (§7 asks only for "a correspondence
+  between nodes in the MT and the original triangles").
+- *Texel luminance* uses the texture pyramid of §4 per original triangle: a min/max
+  luminance pyramid is rasterised hierarchically (a cell inside the UV triangle gives
+  its stored range; a partial cell recurses; a partial texel at the bottom counts),
+  so every texel the triangle touches is covered. Luminance is Rec. 601 Y of the
+  texture's sRGB values on 0..1, the protocol's luminance, without display gamma.
+- *Texture deviation* is sampled, not bounded as Cohen et al. 1998 do: for every
+  corner of the node's original triangles, the distance to the point of the node's
+  created triangles with the same texture coordinates (a created triangle whose UV
+  triangle contains them), or, when no created triangle does (an untextured mesh, or
+  UVs that drifted out of the node's region), the distance to the nearest created
+  triangle. It is made monotone (a node's deviation is at least its children's), so
+  that refining never raises the error of the cut.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from methods.mt import MultiTriangulation
+
+__all__ = ["NodeBounds", "preprocess", "texel_luminance_ranges", "luminance_pyramid"]
+
+
+@dataclass
+class NodeBounds:
+    """Per-node bounds, each an array over the c nodes of the MT.
+
+    Attributes
+    ----------
+    center : ndarray (c, 3); radius : ndarray (c,)
+        Bounding sphere.
+    silhouette_axis : ndarray (c, 3); silhouette_angle : ndarray (c,)
+        Silhouette normal cone (half-angle in radians; π: normals in every direction).
+    shading_axis : ndarray (c, 3); shading_angle : ndarray (c,)
+        Shading normal cone from the original vertex normals.
+    luminance : ndarray (c, 2)
+        L_min, L_max of the covered texels (0..1), or the material gray twice.
+    deviation : ndarray (c,)
+        Texture deviation in model units, monotone up the MT.
+    textured : bool
+    seconds : float
+        Wall time of the preprocessing.
+    """
+
+    center: np.ndarray
+    radius: np.ndarray
+    silhouette_axis: np.ndarray
+    silhouette_angle: np.ndarray
+    shading_axis: np.ndarray
+    shading_angle: np.ndarray
+    luminance: np.ndarray
+    deviation: np.ndarray
+    textured: bool
+    seconds: float = 0.0
+
+
+def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
+    """Bounds of every node of ``mt`` (see the module docstring).
+
+    Parameters
+    ----------
+    mt : MultiTriangulation
+    albedo : float
+        Gray material luminance of untextured meshes (the evaluation renderer's 1.0).
+    """
+    import time
+
+    start = time.perf_counter()
+    m = mt.n_original
+    orig = mt.triangles[:m].astype(np.int64)
+    P = mt.positions
+    corners = P[orig]  # (m, 3, 3)
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    area2 = np.linalg.norm(cross, axis=1)
+    normals = np.divide(cross, area2[:, None], out=np.zeros_like(cross), where=area2[:, None] > 0)
+    # area-weighted vertex normals over the welded original
+    welded = mt.welded[orig]
+    acc = np.zeros((int(mt.welded.max()) + 1, 3))
+    for k in range(3):
+        np.add.at(acc, welded[:, k], cross)
+    length = np.linalg.norm(acc, axis=1, keepdims=True)
+    vnormals = np.divide(acc, length, out=np.zeros_like(acc), where=length > 0)[welded]
+    textured = mt.uv is not None and mt.texture is not None
+    if textured:
+        lum = texel_luminance_ranges(mt.uv[orig], mt.texture)
+    else:
+        lum = np.full((m, 2), float(albedo))
+    out = _node_bounds(mt.triangles.astype(np.int64), P,
+                       mt.uv if mt.uv is not None else np.zeros((1, 2)), mt.uv is not None,
+                       m, mt.created_start.astype(np.int64), mt.created.astype(np.int64),
+                       mt.removed_start.astype(np.int64), mt.removed.astype(np.int64),
+                       mt.child_start.astype(np.int64), mt.children.astype(np.int64),
+                       normals, 0.5 * area2, vnormals, lum)
+    center, radius, sax, sang, hax, hang, lrange, dev = out
+    return NodeBounds(center, radius, sax, sang, hax, hang, lrange, dev, textured,
+                      time.perf_counter() - start)
+
+
+# -- texel luminance through a min/max pyramid (§4) -------------------------------------------
+
+def luminance_pyramid(texture: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Min and max luminance pyramids of a texture, finest level first.
+
+    Parameters
+    ----------
+    texture : ndarray of shape (h, w, 3) or (h, w) uint8
+
+    Returns
+    -------
+    list of (ndarray, ndarray)
+        Level l holds, per cell of 2^l × 2^l texels, the min and max of Rec. 601
+        luminance on 0..1; levels halve (rounding up) down to one cell.
+    """
+    t = np.asarray(texture)
+    if t.ndim == 3:
+        y = (0.299 * t[..., 0] + 0.587 * t[..., 1] + 0.114 * t[..., 2]) / 255.0
+    elif t.ndim == 2:
+        y = t / 255.0
+    else:
+        raise ValueError(f"texture must be (h, w) or (h, w, 3), got shape {t.shape}")
+    lo = hi = y.astype(np.float64)
+    levels = [(lo, hi)]
+    while lo.shape[0] > 1 or lo.shape[1] > 1:
+        h, w = lo.shape
+        ph, pw = h + (h % 2), w + (w % 2)
+        lo_p = np.pad(lo, ((0, ph - h), (0, pw - w)), mode="edge")
+        hi_p = np.pad(hi, ((0, ph - h), (0, pw - w)), mode="edge")
+        lo = lo_p.reshape(ph // 2, 2, pw // 2, 2).min(axis=(1, 3))
+        hi = hi_p.reshape(ph // 2, 2, pw // 2, 2).max(axis=(1, 3))
+        levels.append((lo, hi))
+    return levels
+
+
+def texel_luminance_ranges(uv_triangles: np.ndarray, texture: np.ndarray) -> np.ndarray:
+    """Luminance range of the texels each UV triangle touches (§4).
+
+    Parameters
+    ----------
+    uv_triangles : ndarray of shape (m, 3, 2)
+        Texture coordinates of each triangle's corners (origin bottom-left, as OpenGL;
+        the image's row 0 is v = 1). Coordinates are clamped to [0, 1].
+    texture : ndarray of shape (h, w, 3) uint8
+
+    Returns
+    -------
+    ndarray of shape (m, 2)
+        L_min, L_max on 0..1.
+    """
+    levels = luminance_pyramid(texture)
+    h, w = levels[0][0].shape
+    depth = len(levels)
+    # pack the levels into one padded array per kind: (depth, H0, W0)
+    lo = np.ones((depth, h, w))
+    hi = np.zeros((depth, h, w))
+    for i, (a, b) in enumerate(levels):
+        lo[i, :a.shape[0], :a.shape[1]] = a
+        hi[i, :b.shape[0], :b.shape[1]] = b
+    shapes = np.array([a.shape for a, _ in levels], np.int64)
+    xy = np.empty(uv_triangles.shape, np.float64)
+    uvc = np.clip(uv_triangles, 0.0, 1.0)
+    xy[..., 0] = uvc[..., 0] * w
+    xy[..., 1] = (1.0 - uvc[..., 1]) * h
+    return _texel_ranges(xy, lo, hi, shapes)
+
+
+@njit(cache=True)
+def _edge_side(ax, ay, bx, by, px, py):
+    return (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+
+
+@njit(cache=True)
+def _classify(tri, x0, y0, x1, y1, orient):
+    """0: the box [x0,x1]x[y0,y1] misses the triangle, 1: partly, 2: inside it."""
+    # box axes: bounding boxes disjoint
+    if (max(tri[0, 0], tri[1, 0], tri[2, 0]) <= x0 or min(tri[0, 0], tri[1, 0], tri[2, 0]) >= x1
+            or max(tri[0, 1], tri[1, 1], tri[2, 1]) <= y0
+            or min(tri[0, 1], tri[1, 1], tri[2, 1]) >= y1):
+        return 0
+    if orient == 0.0:
+        return 1  # a degenerate triangle touches the texels its box overlaps
+    inside_all = True
+    for e in range(3):
+        ax, ay = tri[e, 0], tri[e, 1]
+        bx, by = tri[(e + 1) % 3, 0], tri[(e + 1) % 3, 1]
+        n_in = 0
+        for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
+            if _edge_side(ax, ay, bx, by, cx, cy) * orient > 0.0:
+                n_in += 1
+        if n_in == 0:
+            return 0  # every corner outside this edge: a separating axis
+        if n_in < 4:
+            inside_all = False
+    return 2 if inside_all else 1
+
+
+@njit(cache=True)
+def _texel_ranges(xy, lo, hi, shapes):
+    m = xy.shape[0]
+    depth = lo.shape[0]
+    out = np.empty((m, 2))
+    stack = np.empty((4 * depth * 8 + 64, 3), np.int64)
+    for f in range(m):
+        tri = xy[f]
+        orient = _edge_side(tri[0, 0], tri[0, 1], tri[1, 0], tri[1, 1], tri[2, 0], tri[2, 1])
+        bx0 = min(tri[0, 0], tri[1, 0], tri[2, 0])
+        bx1 = max(tri[0, 0], tri[1, 0], tri[2, 0])
+        by0 = min(tri[0, 1], tri[1, 1], tri[2, 1])
+        by1 = max(tri[0, 1], tri[1, 1], tri[2, 1])
+        extent = max(bx1 - bx0, by1 - by0, 1.0)
+        level = min(depth - 1, int(math.ceil(math.log2(extent))))
+        s = 1 << level
+        lmin = 1e300
+        lmax = -1e300
+        n = 0
+        h, w = shapes[0, 0], shapes[0, 1]
+        # the cells of the start level under the triangle's box (a texel-wide margin,
+        # so a triangle on a texel border still reads a texel)
+        cy0 = max(0, int(math.floor(by0 - 1e-9)) // s)
+        cy1 = min(shapes[level, 0] - 1, int(math.floor(by1 + 1e-9)) // s)
+        cx0 = max(0, int(math.floor(bx0 - 1e-9)) // s)
+        cx1 = min(shapes[level, 1] - 1, int(math.floor(bx1 + 1e-9)) // s)
+        for cy in range(cy0, cy1 + 1):
+            for cx in range(cx0, cx1 + 1):
+                stack[n, 0] = level
+                stack[n, 1] = cy
+                stack[n, 2] = cx
+                n += 1
+        while n > 0:
+            n -= 1
+            lv, cy, cx = stack[n, 0], stack[n, 1], stack[n, 2]
+            s = 1 << lv
+            x0, y0 = cx * s, cy * s
+            x1, y1 = min((cx + 1) * s, w), min((cy + 1) * s, h)
+            kind = _classify(tri, x0 - 1e-9, y0 - 1e-9, x1 + 1e-9, y1 + 1e-9, orient)
+            if kind == 0:
+                continue
+            if kind == 2 or lv == 0:
+                lmin = min(lmin, lo[lv, cy, cx])
+                lmax = max(lmax, hi[lv, cy, cx])
+                continue
+            for dy in range(2):
+                for dx in range(2):
+                    yy, xx = 2 * cy + dy, 2 * cx + dx
+                    if yy < shapes[lv - 1, 0] and xx < shapes[lv - 1, 1]:
+                        stack[n, 0] = lv - 1
+                        stack[n, 1] = yy
+                        stack[n, 2] = xx
+                        n += 1
+        if lmin > lmax:  # nothing touched (cannot happen with the margin): nearest texel
+            ty = min(h - 1, max(0, int(by0)))
+            tx = min(w - 1, max(0, int(bx0)))
+            lmin = lo[0, ty, tx]
+            lmax = hi[0, ty, tx]
+        out[f, 0] = lmin
+        out[f, 1] = lmax
+    return out
+
+
+# -- per-node bounds ---------------------------------------------------------------------------
+
+@njit(cache=True)
+def _closest_distance(p, a, b, c):
+    """Distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5)."""
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = ab @ ap
+    d2 = ac @ ap
+    if d1 <= 0.0 and d2 <= 0.0:
+        q = a
+    else:
+        bp = p - b
+        d3 = ab @ bp
+        d4 = ac @ bp
+        if d3 >= 0.0 and d4 <= d3:
+            q = b
+        else:
+            vc = d1 * d4 - d3 * d2
+            if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+                q = a + (d1 / (d1 - d3)) * ab
+            else:
+                cp = p - c
+                d5 = ab @ cp
+                d6 = ac @ cp
+                if d6 >= 0.0 and d5 <= d6:
+                    q = c
+                else:
+                    vb = d5 * d2 - d1 * d6
+                    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+                        q = a + (d2 / (d2 - d6)) * ac
+                    else:
+                        va = d3 * d6 - d5 * d4
+                        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+                            q = b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b)
+                        else:
+                            denom = 1.0 / (va + vb + vc)
+                            q = a + ab * (vb * denom) + ac * (vc * denom)
+    d = p - q
+    return math.sqrt(d @ d)
+
+
+@njit(cache=True)
+def _uv_barycentric(t, a, b, c):
+    """Barycentric coordinates of t in UV triangle abc; (-1, -1, -1) if degenerate."""
+    det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+    if det == 0.0:
+        return -1.0, -1.0, -1.0
+    l1 = ((t[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (t[1] - a[1])) / det
+    l2 = ((b[0] - a[0]) * (t[1] - a[1]) - (t[0] - a[0]) * (b[1] - a[1])) / det
+    return 1.0 - l1 - l2, l1, l2
+
+
+@njit(cache=True)
+def _cone(vectors, n, axis_out):
+    """Cone around the normalised sum of vectors[:n] (already weighted); returns the
+    half-angle of the unit directions (π if the sum vanishes)."""
+    sx = 0.0
+    sy = 0.0
+    sz = 0.0
+    for i in range(n):
+        sx += vectors[i, 0]
+        sy += vectors[i, 1]
+        sz += vectors[i, 2]
+    s = math.sqrt(sx * sx + sy * sy + sz * sz)
+    if s < 1e-300:
+        axis_out[0] = 0.0
+        axis_out[1] = 0.0
+        axis_out[2] = 1.0
+        return math.pi
+    axis_out[0] = sx / s
+    axis_out[1] = sy / s
+    axis_out[2] = sz / s
+    min_cos = 1.0
+    for i in range(n):
+        ln = math.sqrt(vectors[i, 0] ** 2 + vectors[i, 1] ** 2 + vectors[i, 2] ** 2)
+        if ln == 0.0:
+            continue
+        cs = (vectors[i, 0] * axis_out[0] + vectors[i, 1] * axis_out[1]
+              + vectors[i, 2] * axis_out[2]) / ln
+        min_cos = min(min_cos, cs)
+    return math.acos(max(-1.0, min(1.0, min_cos)))
+
+
+@njit(cache=True)
+def _node_bounds(tris, P, UV, has_uv, m, c_start, c_list, r_start, r_list, child_start,
+                 children, normals, areas, vnormals, lum):
+    c = c_start.shape[0] - 1
+    nt = tris.shape[0]
+    head = np.full(nt, -1, np.int64)
+    nxt = np.full(m, -1, np.int64)
+    for o in range(m):
+        head[o] = o
+    center = np.zeros((c, 3))
+    radius = np.zeros(c)
+    sil_axis = np.zeros((c, 3))
+    sil_angle = np.zeros(c)
+    sh_axis = np.zeros((c, 3))
+    sh_angle = np.zeros(c)
+    lrange = np.zeros((c, 2))
+    dev = np.zeros(c)
+    fp = np.empty(m, np.int64)
+    vec = np.empty((4096, 3))
+    axis = np.empty(3)
+    for i in range(c):
+        k = 0
+        for j in range(r_start[i], r_start[i + 1]):
+            t = r_list[j]
+            o = head[t]
+            while o != -1:
+                fp[k] = o
+                k += 1
+                o = nxt[o]
+            head[t] = -1
+        # bounding sphere: box centre, farthest point
+        lo0 = lo1 = lo2 = 1e300
+        hi0 = hi1 = hi2 = -1e300
+        for q in range(k):
+            for e in range(3):
+                x = P[tris[fp[q], e]]
+                lo0 = min(lo0, x[0])
+                lo1 = min(lo1, x[1])
+                lo2 = min(lo2, x[2])
+                hi0 = max(hi0, x[0])
+                hi1 = max(hi1, x[1])
+                hi2 = max(hi2, x[2])
+        for part in range(2):
+            s0 = r_start[i] if part == 0 else c_start[i]
+            s1 = r_start[i + 1] if part == 0 else c_start[i + 1]
+            lst = r_list if part == 0 else c_list
+            for j in range(s0, s1):
+                for e in range(3):
+                    x = P[tris[lst[j], e]]
+                    lo0 = min(lo0, x[0])
+                    lo1 = min(lo1, x[1])
+                    lo2 = min(lo2, x[2])
+                    hi0 = max(hi0, x[0])
+                    hi1 = max(hi1, x[1])
+                    hi2 = max(hi2, x[2])
+        cx, cy, cz = 0.5 * (lo0 + hi0), 0.5 * (lo1 + hi1), 0.5 * (lo2 + hi2)
+        r2 = 0.0
+        for q in range(k):
+            for e in range(3):
+                x = P[tris[fp[q], e]]
+                r2 = max(r2, (x[0] - cx) ** 2 + (x[1] - cy) ** 2 + (x[2] - cz) ** 2)
+        for part in range(2):
+            s0 = r_start[i] if part == 0 else c_start[i]
+            s1 = r_start[i + 1] if part == 0 else c_start[i + 1]
+            lst = r_list if part == 0 else c_list
+            for j in range(s0, s1):
+                for e in range(3):
+                    x = P[tris[lst[j], e]]
+                    r2 = max(r2, (x[0] - cx) ** 2 + (x[1] - cy) ** 2 + (x[2] - cz) ** 2)
+        center[i, 0] = cx
+        center[i, 1] = cy
+        center[i, 2] = cz
+        radius[i] = math.sqrt(r2)
+        # silhouette cone: area-weighted original normals and the node's own triangles
+        nvec = 0
+        if vec.shape[0] < k + (r_start[i + 1] - r_start[i]) + (c_start[i + 1] - c_start[i]):
+            vec = np.empty((2 * (k + r_start[i + 1] - r_start[i] + c_start[i + 1]
+                                 - c_start[i]) + 16, 3))
+        for q in range(k):
+            o = fp[q]
+            for e in range(3):
+                vec[nvec, e] = normals[o, e] * areas[o]
+            nvec += 1
+        for part in range(2):
+            s0 = r_start[i] if part == 0 else c_start[i]
+            s1 = r_start[i + 1] if part == 0 else c_start[i + 1]
+            lst = r_list if part == 0 else c_list
+            for j in range(s0, s1):
+                a = P[tris[lst[j], 0]]
+                b = P[tris[lst[j], 1]]
+                cc = P[tris[lst[j], 2]]
+                n = np.cross(b - a, cc - a)
+                vec[nvec] = 0.5 * n
+                nvec += 1
+        sil_angle[i] = _cone(vec, nvec, axis)
+        sil_axis[i] = axis
+        # shading cone: the original vertex normals
+        if vec.shape[0] < 3 * k:
+            vec = np.empty((6 * k + 16, 3))
+        nvec = 0
+        for q in range(k):
+            for e in range(3):
+                vec[nvec] = vnormals[fp[q], e]
+                nvec += 1
+        sh_angle[i] = _cone(vec, nvec, axis)
+        sh_axis[i] = axis
+        # texel luminance range
+        lmin = 1e300
+        lmax = -1e300
+        for q in range(k):
+            lmin = min(lmin, lum[fp[q], 0])
+            lmax = max(lmax, lum[fp[q], 1])
+        if k == 0:
+            lmin = 0.0
+            lmax = 0.0
+        lrange[i, 0] = lmin
+        lrange[i, 1] = lmax
+        # texture deviation, and hand each original to its nearest created triangle
+        d_node = 0.0
+        c0, c1 = c_start[i], c_start[i + 1]
+        for q in range(k):
+            o = fp[q]
+            if c1 > c0:
+                for e in range(3):
+                    x = P[tris[o, e]]
+                    best_geo = 1e300
+                    best_par = 1e300
+                    for j in range(c0, c1):
+                        t = c_list[j]
+                        a = P[tris[t, 0]]
+                        b = P[tris[t, 1]]
+                        cc = P[tris[t, 2]]
+                        best_geo = min(best_geo, _closest_distance(x, a, b, cc))
+                        if has_uv:
+                            l0, l1, l2 = _uv_barycentric(UV[tris[o, e]], UV[tris[t, 0]],
+                                                         UV[tris[t, 1]], UV[tris[t, 2]])
+                            if l0 >= -1e-9 and l1 >= -1e-9 and l2 >= -1e-9:
+                                y = l0 * a + l1 * b + l2 * cc
+                                dd = x - y
+                                best_par = min(best_par, math.sqrt(dd @ dd))
+                    d_node = max(d_node, best_par if best_par < 1e300 else best_geo)
+                g = (P[tris[o, 0]] + P[tris[o, 1]] + P[tris[o, 2]]) / 3.0
+                best = 1e300
+                best_t = -1
+                for j in range(c0, c1):
+                    t = c_list[j]
+                    d = _closest_distance(g, P[tris[t, 0]], P[tris[t, 1]], P[tris[t, 2]])
+                    if d < best:
+                        best = d
+                        best_t = t
+                nxt[o] = head[best_t]
+                head[best_t] = o
+        for j in range(child_start[i], child_start[i + 1]):
+            d_node = max(d_node, dev[children[j]])
+        dev[i] = d_node
+    return center, radius, sil_axis, sil_angle, sh_axis, sh_angle, lrange, dev

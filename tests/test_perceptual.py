@@ -1,0 +1,304 @@
+"""CSF, node bounds, per-view errors and budget refinement of perceptual-mt."""
+
+import math
+
+import numpy as np
+import pytest
+
+from bench.errors import ParamError
+from bench.mesh import Mesh
+from bench.method import parse_params
+from bench.torus import make_torus
+from methods.csf import PEAK_FREQUENCY, ContrastSensitivity, csf
+from methods.mt import build_mt
+from methods.mt_preprocess import luminance_pyramid, preprocess, texel_luminance_ranges
+from methods.perceptual_mt import PerceptualMT, Refiner, node_errors, refine
+from metrics.views import Camera, protocol_cameras
+
+
+# -- CSF (§3) ---------------------------------------------------------------------------------
+
+def _formula(f):
+    return ((0.008 / f ** 1.5 + 1) ** -0.2 * 1.42 * f * math.exp(-0.3 * f)
+            * math.sqrt(1 + 0.06 * math.exp(0.3 * f)))
+
+
+@pytest.mark.parametrize("f", [0.5, 1.0, 4.0, 16.0, 40.0])
+def test_csf_matches_the_formula(f):
+    assert csf(f) == pytest.approx(_formula(f), rel=1e-12)
+
+
+def test_csf_reference_values():
+    # hand-evaluated: C(1) = 1.0092^-0.2 · 1.42 e^-0.3 sqrt(1 + 0.06 e^0.3)
+    assert csf(1.0) == pytest.approx(1.09199, abs=1e-5)
+    assert csf(4.0) == pytest.approx(1.87308, abs=1e-5)
+
+
+def test_peak_lies_where_section_3_2_says():
+    assert 2.0 <= PEAK_FREQUENCY <= 4.0
+    assert csf(PEAK_FREQUENCY) > csf(PEAK_FREQUENCY * 0.9)
+    assert csf(PEAK_FREQUENCY) > csf(PEAK_FREQUENCY * 1.1)
+
+
+def test_scaled_and_clamped_below_the_peak():
+    s = ContrastSensitivity(peak_sensitivity=200.0)
+    assert s.sensitivity(PEAK_FREQUENCY) == pytest.approx(200.0)
+    assert s.sensitivity(0.3) == pytest.approx(200.0)  # clamped, Figure 3
+    assert s.sensitivity(20.0) == pytest.approx(200.0 * csf(20.0) / csf(PEAK_FREQUENCY))
+
+
+def test_threshold_table_matches_the_formula():
+    s = ContrastSensitivity()
+    f = np.geomspace(PEAK_FREQUENCY, 80.0, 37)
+    np.testing.assert_allclose(s.threshold(f), 1.0 / s.sensitivity(f), rtol=1e-4)
+
+
+def test_inversion_is_monotone_and_round_trips():
+    s = ContrastSensitivity()
+    c = np.geomspace(1.0 / 199.0, 1.0, 200)
+    f = s.visible_frequency(c)
+    assert np.all(np.diff(f) > 0)
+    np.testing.assert_allclose(s.threshold(f), c, rtol=1e-3)
+    assert s.visible_frequency(0.004) == 0.0  # below the peak threshold 1/200: never seen
+    assert s.visible_frequency(0.0) == 0.0
+    # distance grows with the feature's size: twice as wide, twice as far
+    assert s.imperceptibility_distance(0.3, 0.2) == pytest.approx(
+        2 * s.imperceptibility_distance(0.3, 0.1))
+
+
+def test_csf_errors():
+    with pytest.raises(ValueError, match="positive"):
+        csf(0.0)
+    with pytest.raises(ValueError, match="peak_sensitivity"):
+        ContrastSensitivity(peak_sensitivity=0.5)
+
+
+# -- texel luminance through the pyramid (§4) --------------------------------------------------
+
+def _gray(values):
+    v = np.asarray(values, np.uint8)
+    return np.stack([v, v, v], axis=-1)
+
+
+def test_pyramid_levels_hold_min_and_max():
+    tex = _gray(np.arange(16).reshape(4, 4) * 10)
+    levels = luminance_pyramid(tex)
+    assert [lo.shape for lo, _ in levels] == [(4, 4), (2, 2), (1, 1)]
+    lo, hi = levels[1]
+    assert lo[0, 0] == pytest.approx(0 / 255) and hi[0, 0] == pytest.approx(50 / 255)
+    assert levels[2][0][0, 0] == 0 and levels[2][1][0, 0] == pytest.approx(150 / 255)
+
+
+def test_triangle_reads_the_texels_it_touches():
+    # 4x4 texture, row 0 at the top (v = 1). The triangle covers, in texel units from the
+    # top-left, (0.2, 0.2), (1.7, 0.2), (0.2, 1.7): texels (0,0), (0,1), (1,0) only.
+    values = np.array([[10, 20, 200, 250], [30, 40, 220, 240], [5, 60, 70, 80],
+                       [90, 100, 110, 120]])
+    tex = _gray(values)
+    uv = np.array([[[0.2 / 4, 1 - 0.2 / 4], [1.7 / 4, 1 - 0.2 / 4], [0.2 / 4, 1 - 1.7 / 4]]])
+    lo, hi = texel_luminance_ranges(uv, tex)[0]
+    assert lo == pytest.approx(10 / 255) and hi == pytest.approx(30 / 255)
+
+
+def test_ranges_contain_sampled_texels_and_stay_in_the_box():
+    rng = np.random.default_rng(1)
+    tex = _gray(rng.integers(0, 256, (32, 32)))
+    lum = tex[..., 0] / 255.0
+    uv = rng.random((60, 3, 2))
+    ranges = texel_luminance_ranges(uv, tex)
+    for t, (lo, hi) in zip(uv, ranges):
+        xy = np.stack([t[:, 0] * 32, (1 - t[:, 1]) * 32], axis=1)
+        # texel centres inside the triangle (a subset of what it touches)
+        ys, xs = np.mgrid[0:32, 0:32] + 0.5
+        p = np.stack([xs.ravel(), ys.ravel()], 1)
+        a, b, c = xy
+        d = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+        l1 = ((p[:, 0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (p[:, 1] - a[1])) / d
+        l2 = ((b[0] - a[0]) * (p[:, 1] - a[1]) - (p[:, 0] - a[0]) * (b[1] - a[1])) / d
+        inside = (l1 >= 0) & (l2 >= 0) & (l1 + l2 <= 1)
+        if inside.any():
+            sampled = lum.ravel()[inside]
+            assert lo <= sampled.min() + 1e-12 and hi >= sampled.max() - 1e-12
+        x0, y0 = np.floor(xy.min(0)).astype(int)
+        x1, y1 = np.floor(xy.max(0)).astype(int)
+        box = lum[max(0, y0 - 1):y1 + 2, max(0, x0 - 1):x1 + 2]
+        assert lo >= box.min() - 1e-12 and hi <= box.max() + 1e-12
+
+
+# -- bounds, errors and refinement on tiny meshes ----------------------------------------------
+
+def _grid(n, x0, x1, flip=False, z=0.0):
+    """An n x n quad grid in the plane z, facing +z (or -z when flipped)."""
+    xs = np.linspace(x0, x1, n + 1)
+    ys = np.linspace(-1.0, 1.0, n + 1)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    pos = np.stack([gx, gy, np.full_like(gx, z)], -1).reshape(-1, 3)
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[:-1, 1:], idx[1:, 1:]
+    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3),
+                            np.stack([a, d, c], -1).reshape(-1, 3)])
+    if flip:
+        faces = faces[:, ::-1]
+    # a gentle bump so the quadric engine has an order to follow
+    pos[:, 2] += 0.05 * np.sin(3 * pos[:, 0]) * np.cos(2 * pos[:, 1])
+    return pos, faces
+
+
+def _three_patches():
+    """Left patch faces the camera; right patch faces away; a third lies far off-screen."""
+    parts = [_grid(8, -2.5, -0.5), _grid(8, 0.5, 2.5, flip=True), _grid(8, 48.0, 50.0)]
+    pos, faces, base = [], [], 0
+    for p, f in parts:
+        pos.append(p)
+        faces.append(f + base)
+        base += len(p)
+    return Mesh(np.concatenate(pos), np.concatenate(faces).astype(np.int32), name="patches")
+
+
+CAMERA = Camera(eye=[-1.5, 0.0, 5.0], target=[-1.5, 0.0, 0.0], up=[0, 1, 0], fov_y_deg=60.0,
+                near=0.1, far=20.0)
+
+
+@pytest.fixture(scope="module")
+def patches():
+    mesh = _three_patches()
+    mt = build_mt(mesh)
+    return mesh, mt, preprocess(mt)
+
+
+def test_spheres_and_cones_bound_the_original(patches):
+    mesh, mt, b = patches
+    assert np.all(b.radius > 0)
+    # a node's original triangles lie in its sphere: check the coarsest nodes, whose
+    # footprint is a whole patch
+    for i in range(mt.n_nodes - 3, mt.n_nodes):
+        d = np.linalg.norm(mt.positions[mt.triangles[mt.node_removed(i)]].reshape(-1, 3)
+                           - b.center[i], axis=1)
+        assert np.all(d <= b.radius[i] + 1e-12)
+    # the silhouette cone holds the normals of the node's own triangles, the shading
+    # cone the original's vertex normals (of a plane: about +z or -z)
+    for i in range(mt.n_nodes):
+        tris = mt.triangles[np.concatenate([mt.node_removed(i), mt.node_created(i)])]
+        p = mt.positions[tris]
+        n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        n = n[np.linalg.norm(n, axis=1) > 1e-12]
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        assert np.all(n @ b.silhouette_axis[i] >= math.cos(b.silhouette_angle[i]) - 1e-9)
+    assert np.all(np.abs(b.shading_axis[:, 2]) > 0.9)
+    assert np.all(b.luminance == 1.0)  # untextured: the material's white
+    assert np.all(b.deviation >= 0)
+    for i in range(mt.n_nodes):  # monotone up the MT
+        ch = mt.node_children(i)
+        assert np.all(b.deviation[ch] <= b.deviation[i])
+
+
+def test_invisible_nodes_have_zero_error(patches):
+    mesh, mt, b = patches
+    for error in ("perceptual", "screen", "screen-silhouette"):
+        err, status = node_errors(b, CAMERA, 256, error=error)
+        left = b.center[:, 0] < 0
+        assert np.all(status[~left] == 0) and np.all(err[~left] == 0)
+        assert np.all(status[left] > 0)
+        if error == "perceptual":  # a node lit evenly enough is below threshold: 0 too
+            assert (err[left] > 0).mean() > 0.5
+        else:
+            assert np.all(err[left][b.deviation[left] > 0] > 0)
+    err, _ = node_errors(b, CAMERA, 256, error="object")
+    np.testing.assert_array_equal(err, b.deviation)
+
+
+def test_silhouette_factor_multiplies_silhouette_nodes_only():
+    mesh = make_torus(48, 24, texture_size=64)  # fine enough for front-facing nodes
+    mt = build_mt(mesh)
+    b = preprocess(mt)
+    cam = protocol_cameras(mesh)[3]
+    screen, status = node_errors(b, cam, 512, error="screen")
+    sil, _ = node_errors(b, cam, 512, error="screen-silhouette")
+    on = status == 2
+    assert on.any() and (status == 1).any()
+    np.testing.assert_allclose(sil[on], 10 * screen[on])
+    np.testing.assert_array_equal(sil[~on], screen[~on])
+
+
+def test_back_facing_and_off_screen_patches_are_never_refined(patches):
+    mesh, mt, b = patches
+    left = b.center[:, 0] < 0
+    spare = int(mt.delta[left].sum())  # faces that refining the visible patch can add
+    budget = mt.coarsest_faces + spare // 2
+    r = Refiner(mt, b, "perceptual", lighting="gouraud", specular=True)
+    info = r.refine_view(CAMERA, budget, 256)
+    assert info["raised"] > 0
+    assert r.cut.applied[~left].all()  # nothing behind or off-screen was refined
+    assert budget - mt.delta.max() < r.cut.n_faces <= budget
+
+
+def test_refinement_meets_the_budget_from_view_to_view():
+    mesh = make_torus(16, 8, texture_size=64)
+    mt = build_mt(mesh)
+    b = preprocess(mt)
+    for error in ("perceptual", "screen", "object"):
+        r = Refiner(mt, b, error)
+        for k, cam in enumerate(protocol_cameras(mesh)[:8]):
+            budget = 40 + 9 * k
+            r.refine_view(cam, budget, 512)
+            assert budget - mt.delta.max() < r.cut.n_faces <= budget
+            assert r.cut.n_faces == len(r.cut.triangles())
+            assert np.all(r.cut.mesh().welded.edge_face_count == 2)
+
+
+def test_refine_is_greedy_on_view_independent_errors():
+    mesh = make_torus(16, 8, texture_size=64)
+    mt = build_mt(mesh)
+    cut = mt.cut("coarsest")
+    err = np.zeros(mt.n_nodes)
+    err[0] = 1.0  # only the first collapse matters; its ancestors must come with it
+    refine(cut, err, mt.coarsest_faces + 2 * mt.n_nodes)  # room for everything
+    assert cut.n_faces == mesh.n_faces  # and every node fits
+    cut = mt.cut("coarsest")
+    refine(cut, err, mt.coarsest_faces + 2)  # room for one node only
+    assert cut.n_faces == mt.coarsest_faces + 2
+
+
+def test_refine_rejects_bad_input():
+    mesh = make_torus(16, 8, texture_size=64)
+    mt = build_mt(mesh)
+    with pytest.raises(ValueError, match="budget"):
+        refine(mt.cut(), np.zeros(mt.n_nodes), 0)
+    with pytest.raises(ValueError, match="shape"):
+        refine(mt.cut(), np.zeros(3), 10)
+    b = preprocess(mt)
+    with pytest.raises(ValueError, match="error must be"):
+        node_errors(b, CAMERA, 256, error="psnr")
+    with pytest.raises(ValueError, match="ppd"):
+        node_errors(b, CAMERA, 256, ppd=0)
+
+
+# -- the method -------------------------------------------------------------------------------
+
+def test_method_returns_a_view_independent_cut_and_per_view_cuts():
+    from metrics.protocol import Protocol
+
+    mesh = make_torus(16, 8, texture_size=64)
+    method = PerceptualMT()
+    result = method.simplify(mesh, 60)
+    assert result.mesh.n_faces <= 60 and result.mesh.has_texture
+    views = result.view_cuts(protocol_cameras(mesh), Protocol(shading="gouraud", specular=True))
+    assert len(views) == 24
+    assert all(52 < v.n_faces <= 60 for v in views)
+    assert result.view_cuts.stats["view_lighting"] == "gouraud"
+    assert len(result.view_cuts.stats["refine_ms"]) == 24
+
+
+def test_method_params_are_checked():
+    with pytest.raises(ParamError, match="error"):
+        parse_params(PerceptualMT.Params, ["error=psnr"])
+    params = parse_params(PerceptualMT.Params, ["error=screen-silhouette", "ppd=40"])
+    assert params.error == "screen-silhouette" and params.ppd == 40.0
+
+
+def test_protocol_needs_one_mesh_per_view():
+    from metrics.protocol import Protocol, render_per_view
+
+    mesh = make_torus(16, 8, texture_size=64)
+    with pytest.raises(ValueError, match="one mesh per protocol view"):
+        render_per_view([mesh] * 3, mesh, Protocol())
