@@ -133,7 +133,9 @@ def _run_job(job: Job, run_dir: Path, record: dict) -> None:
     record["job"]["params_all"] = dataclasses.asdict(params)
 
     peak = _PeakMemory()
-    result = run_method(method_cls(params), mesh, job.target_faces)
+    # shading-aware methods optimise for the evaluation's shading unless told otherwise
+    ctx = {"shading": job.protocol.shading, "specular": job.protocol.specular}
+    result = run_method(method_cls(params), mesh, job.target_faces, ctx)
     stats = dict(result.stats)
     stats["peak_mb"] = peak.megabytes()
     removed = mesh.n_faces - result.mesh.n_faces

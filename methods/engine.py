@@ -1133,13 +1133,14 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
         for i in range(min(removed, 2)):
             log_faces[n, i] = efaces[i]
         if weights[3] != 0.0:  # bring the images up to date
-            if not commit_geometry(v, efaces, removed, P, F, FW, uv, falive, vhead, cnext,
-                                   valive, img, tiles, iws):
+            ok, changed = commit_geometry(v, efaces, removed, P, F, FW, uv, falive, vhead,
+                                          cnext, valive, img, tiles, iws)
+            if not ok:
                 tiles = build_tiles(img[6], falive, TILE, -(-img[4].shape[2] // TILE),
                                     -(-img[4].shape[1] // TILE))
                 img[11][5] += 1
                 ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to)
-            commit_render(P, F, FW, uv, falive, img, tiles, iws, float(BACKGROUND))
+            commit_render(changed, P, F, FW, uv, falive, img, tiles, iws, float(BACKGROUND))
         n += 1
         log_start[n] = n_changed
         faces -= removed

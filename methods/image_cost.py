@@ -11,7 +11,7 @@ mesh and everything needed to re-render a rectangle of them:
 
 * per view and vertex the screen position, per face and view its pixel bounding box,
   per vertex its unit normal and (gouraud) its lighting in every view;
-* a per-view *tile index* (16 x 16-pixel tiles, each listing the faces whose box
+* a per-view *tile index* (8 x 8-pixel tiles, each listing the faces whose box
   overlaps it) to find the faces under a rectangle;
 * :func:`image_cost` renders each view's rectangle as it would look after a *simulated*
   collapse (the kept vertex at its new place, the removed faces gone, new texture
@@ -60,10 +60,11 @@ from methods.raster import (ROW, T_L, T_N, T_P, T_UV, T_W, T_X, T_Y, T_Z, scan_r
 __all__ = ["ImageTerm", "TILE", "STAT_NAMES", "dummy_state", "new_state", "full_render"]
 
 #: Side of the square tiles of the per-view face index, in pixels.
-TILE = 16
+TILE = 8
 #: Counters kept in the state's ``stats`` array.
 STAT_NAMES = ("image_evaluations", "pixels_shaded", "face_rows", "raster_cycles",
-              "run_cycles", "tile_rebuilds", "commits")
+              "run_cycles", "tile_rebuilds", "commits", "gather_cycles", "shade_cycles",
+              "setup_cycles")
 _MAX_RING = 256  # vertices whose normal a collapse changes (more: 2-ring of a huge fan)
 
 
@@ -183,24 +184,31 @@ def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
 
 
 @njit(cache=True)
-def fill_row(t, k, f, h, u, v, sp, p, P, F, FW, uv, S, L, vslot, ov_light, wslot, new_uv,
-             wfrom, wto, npairs, consts):
-    """Row ``k`` of table ``t``: face ``f`` in view ``h`` after collapsing ``u`` into
-    ``v`` at ``p`` (screen ``sp``), with the new lighting of the vertices in ``vslot``
-    and the new texture coordinates of the wedges in ``wslot``; ``u = -1`` for the
-    current mesh."""
+def fill_screen(t, k, f, h, u, v, sp, S, F):
+    """Screen columns of row ``k``: face ``f`` in view ``h`` after collapsing ``u`` into
+    ``v`` (whose screen position becomes ``sp``); ``u = -1`` for the current mesh."""
+    for j in range(3):
+        x = F[f, j]
+        if u >= 0 and (x == u or x == v):
+            t[k, T_X + j], t[k, T_Y + j], t[k, T_Z + j], t[k, T_W + j] = sp[0], sp[1], \
+                sp[2], sp[3]
+        else:
+            t[k, T_X + j], t[k, T_Y + j], t[k, T_Z + j], t[k, T_W + j] = S[h, x, 0], \
+                S[h, x, 1], S[h, x, 2], S[h, x, 3]
+
+
+@njit(cache=True)
+def fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, vslot, ov_light, wslot, new_uv,
+                 wfrom, wto, npairs, consts):
+    """Shading columns of row ``k`` (as :func:`fill_screen`): corner positions and the
+    face normal (flat), corner lighting (gouraud; the new lighting of the vertices in
+    ``vslot``), texture coordinates (the new ones of the wedges in ``wslot``)."""
     gouraud, textured = consts[6] != 0.0, consts[7] != 0.0
     for j in range(3):
         x = F[f, j]
         moved = u >= 0 and (x == u or x == v)
         for d in range(3):
             t[k, T_P + 3 * j + d] = p[d] if moved else P[x, d]
-        if moved:
-            t[k, T_X + j], t[k, T_Y + j], t[k, T_Z + j], t[k, T_W + j] = sp[0], sp[1], \
-                sp[2], sp[3]
-        else:
-            t[k, T_X + j], t[k, T_Y + j], t[k, T_Z + j], t[k, T_W + j] = S[h, x, 0], \
-                S[h, x, 1], S[h, x, 2], S[h, x, 3]
         if gouraud:
             slot = vslot[v if moved else x]
             for d in range(4):
@@ -342,56 +350,100 @@ def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
 
 
 @njit(cache=True)
-def _render_rect(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, npairs,
-                 atick, commit, background):
-    """Render ``cand[:n]`` (sorted) over ``rect`` of view h as the mesh would look after
-    collapsing u into v at p (u = -1: as it is). Pixels whose visible face is the same
-    as now and not marked affected (``amark == atick``) keep their luminance; the others
-    are shaded. With ``commit`` the result goes into ``Y`` and ``IDS``; otherwise returns
-    the change of the squared error (equation 8)."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
-    (mark, tick, cand, t, depth, ids, lum, vslot, ov_light, wslot, new_uv, ring, rects, buf,
-     n3, sp_, box, aff, amark) = iws
+def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws, wfrom,
+                 wto, npairs, atick, commit, background):
+    """Re-render ``rect`` of view ``h`` as the mesh looks after collapsing ``u`` into
+    ``v`` at ``p`` (``u = -1``: as it is now, after a collapse already made).
+
+    ``aff[:na]`` are the faces whose geometry changes (with ``u >= 0`` those holding
+    both ``u`` and ``v`` disappear); they and any removed faces carry
+    ``gmark == atick``, and every face whose shading may change carries
+    ``amark == atick``. A pixel keeps its current face unless that face is one of the
+    changed ones (a *hole*): the kept faces' depth is known (``DZ``), so only the
+    changed faces are scanned over the whole rectangle, and the other faces only over
+    the holes' bounding box. Depth ties go to the lower face id, so the result is the
+    from-scratch render's. With ``commit`` the pixels go into ``Y``, ``IDS`` and
+    ``DZ``; otherwise returns the change of the squared error (equation 8).
+    """
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
+     sp_, box, aff, amark, gmark, rowof, rowmark) = iws
+    n_views, height, width = Y.shape
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
-    for r in range(r1 - r0 + 1):
-        for c in range(c1 - c0 + 1):
-            depth[r, c] = np.inf
-            ids[r, c] = -1
     start = cycles()
-    for k in range(n):
-        fill_row(t, k, cand[k], h, u, v, sp, p, P, F, FW, uv, S, L, vslot, ov_light, wslot,
-                 new_uv, wfrom, wto, npairs, consts)
-        scan_row(t, k, c0, c1, r0, r1, cull[h], depth, ids)
+    hc0, hc1, hr0, hr1 = width, -1, height, -1
+    for r in range(r0, r1 + 1):
+        for c in range(c0, c1 + 1):
+            w = IDS[h, r, c]
+            if w >= 0 and gmark[w] == atick:
+                depth[r - r0, c - c0] = np.inf
+                ids[r - r0, c - c0] = -1
+                hc0, hc1 = min(hc0, c), max(hc1, c)
+                hr0, hr1 = min(hr0, r), max(hr1, r)
+            else:
+                depth[r - r0, c - c0] = DZ[h, r, c]
+                ids[r - r0, c - c0] = w
+    n = 0
+    for i in range(na):
+        f = aff[i]
+        if u >= 0 and _has(F, f, u) and _has(F, f, v):
+            continue  # removed by the collapse
+        cand[n] = f
+        rowof[f] = n
+        fill_screen(t, n, f, h, u, v, sp, S, F)
+        scan_row(t, n, f, c0, c1, r0, r1, cull[h], depth, ids)
+        n += 1
+    if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
+        tick[0] += 1
+        for i in range(na):
+            mark[aff[i]] = tick[0]
+        hole = box
+        hole[0], hole[1], hole[2], hole[3] = hc0, hc1, hr0, hr1
+        g0 = cycles()
+        n2 = _gather(tiles, h, hole, fbox, falive, mark, tick[0], cand, n, TILE,
+                     -(-width // TILE))
+        stats[7] += cycles() - g0
+        hole_depth = depth[hr0 - r0:, hc0 - c0:]  # views indexed from the holes' corner
+        hole_ids = ids[hr0 - r0:, hc0 - c0:]
+        for k in range(n, n2):
+            f = cand[k]
+            rowof[f] = k
+            fill_screen(t, k, f, h, -1, -1, sp, S, F)
+            scan_row(t, k, f, hc0, hc1, hr0, hr1, cull[h], hole_depth, hole_ids)
+        n = n2
+    mid = cycles()
+    tick[0] += 1
+    filled = tick[0]  # rows whose shading columns are filled are marked with it
     cost = 0.0
     shaded = 0
     for r in range(r0, r1 + 1):
         for c in range(c0, c1 + 1):
-            k = ids[r - r0, c - c0]
-            f = cand[k] if k >= 0 else -1
+            f = ids[r - r0, c - c0]
             if f == IDS[h, r, c] and (f < 0 or amark[f] != atick):
                 continue  # the same face, unchanged: the same luminance
-            y = background if k < 0 else shade_pixel(t, k, c + 0.5, r + 0.5, eyes[h],
-                                                     consts, texture)
+            y = background
+            if f >= 0:
+                k = rowof[f]
+                if rowmark[k] != filled:
+                    fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, vslot, ov_light,
+                                 wslot, new_uv, wfrom, wto, npairs, consts)
+                    rowmark[k] = filled
+                y = shade_pixel(t, k, c + 0.5, r + 0.5, eyes[h], consts, texture)
             shaded += 1
             if commit:
                 Y[h, r, c] = y
                 IDS[h, r, c] = f
+                DZ[h, r, c] = depth[r - r0, c - c0]
             else:
                 a = Y0[h, r, c] - y
                 b = Y0[h, r, c] - Y[h, r, c]
                 cost += a * a - b * b
+    end = cycles()
     stats[1] += shaded
     stats[2] += n
-    stats[3] += cycles() - start
+    stats[3] += end - start
+    stats[8] += end - mid
     return cost
-
-
-@njit(cache=True)
-def _candidates(h, rect, n, tiles, fbox, falive, iws, tile, nx):
-    mark, tick, cand = iws[0], iws[1], iws[2]
-    n = _gather(tiles, h, rect, fbox, falive, mark, tick[0], cand, n, tile, nx)
-    cand[:n] = np.sort(cand[:n])
-    return n
 
 
 @njit(cache=True)
@@ -400,13 +452,13 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
     squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
     whose texture coordinates become ``target_uv[:nt]``."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
-    (mark, tick, cand, t, depth, ids, lum, vslot, ov_light, wslot, new_uv, ring, rects, buf,
-     n3, sp, box, aff, amark) = iws
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
+     sp, box, aff, amark, gmark, rowof, rowmark) = iws
     n_views, height, width = Y.shape
     gouraud = consts[6] != 0.0
-    tile, nx = TILE, -(-width // TILE)
     stats[0] += 1
+    setup_start = cycles()
     for i in range(nt):
         wslot[targets[i]] = i
         new_uv[i, 0], new_uv[i, 1] = target_uv[i, 0], target_uv[i, 1]
@@ -434,7 +486,10 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     atick = tick[0]
     for i in range(ns):
         amark[aff[i]] = atick
+    for i in range(na):
+        gmark[aff[i]] = atick
     cost = 0.0
+    stats[9] += cycles() - setup_start
     for h in range(n_views):
         project(M, h, p, width, height, sp)
         rect = rects[h]
@@ -444,23 +499,13 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
         for i in range(na):
             f = aff[i]
             if not (_has(F, f, u) and _has(F, f, v)):
-                fill_row(t, 0, f, h, u, v, sp, p, P, F, FW, uv, S, L, vslot, ov_light, wslot,
-                         new_uv, wfrom, wto, npairs, consts)
+                fill_screen(t, 0, f, h, u, v, sp, S, F)
                 row_box(t, 0, width, height, box)
                 _grow(rect, box)
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue
-        tick[0] += 1
-        n = 0
-        for i in range(ns):
-            f = aff[i]
-            mark[f] = tick[0]
-            if not (i < na and _has(F, f, u) and _has(F, f, v)):
-                cand[n] = f
-                n += 1
-        n = _candidates(h, rect, n, tiles, fbox, falive, iws, tile, nx)
-        cost += _render_rect(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto,
-                             npairs, atick, False, background)
+        cost += _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws,
+                             wfrom, wto, npairs, atick, False, background)
     for i in range(nr):
         vslot[ring[i]] = -1
     for i in range(nt):
@@ -473,14 +518,14 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
                     tiles, iws):
     """After collapsing into ``v`` (faces ``removed[:n_removed]`` deleted): update screen
     positions, normals, lighting and face boxes, note each view's rectangle, and list
-    the changed faces in the tile index. False when a tile overflowed (rebuild the index
-    and call :func:`commit_render`)."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
-    (mark, tick, cand, t, depth, ids, lum, vslot, ov_light, wslot, new_uv, ring, rects, buf,
-     n3, sp, box, aff, amark) = iws
+    the changed faces in the tile index. Returns (whether no tile overflowed, how many
+    faces around ``v`` changed); after an overflow rebuild the index before
+    :func:`commit_render`."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
+     sp, box, aff, amark, gmark, rowof, rowmark) = iws
     n_views, height, width = Y.shape
     gouraud = consts[6] != 0.0
-    tile, nx = TILE, -(-width // TILE)
     stats[6] += 1
     tick[0] += 1
     na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, 0)
@@ -509,53 +554,55 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
             ns = _faces_around(x, vhead, cnext, falive, mark, tick[0], aff, ns)
     for i in range(ns):
         amark[aff[i]] = tick[0]
+    for i in range(na):
+        gmark[aff[i]] = tick[0]
+    for i in range(n_removed):
+        gmark[removed[i]] = tick[0]
     ok = True
-    none_i = np.full(1, -1, np.int64)
     for h in range(n_views):
         for i in range(ns):
             _grow(rects[h], fbox[h, aff[i]])
         for i in range(na):
             f = aff[i]
-            fill_row(t, 0, f, h, -1, -1, sp, P[v], P, F, FW, uv, S, L, vslot, ov_light, wslot,
-                     new_uv, none_i, none_i, 0, consts)
+            fill_screen(t, 0, f, h, -1, -1, sp, S, F)
             row_box(t, 0, width, height, fbox[h, f])
             _grow(rects[h], fbox[h, f])
             if ok:
-                ok = _tiles_add(tiles, h, f, fbox[h, f], tile, nx)
-    return ok
+                ok = _tiles_add(tiles, h, f, fbox[h, f], TILE, -(-width // TILE))
+    return ok, na
 
 
 @njit(cache=True)
-def commit_render(P, F, FW, uv, falive, img, tiles, iws, background):
-    """Re-render every view's rectangle noted by :func:`commit_geometry` into ``Y``."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
-    (mark, tick, cand, t, depth, ids, lum, vslot, ov_light, wslot, new_uv, ring, rects, buf,
-     n3, sp, box, aff, amark) = iws
-    n_views, height, width = Y.shape
-    tile, nx = TILE, -(-width // TILE)
+def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
+    """Re-render every view's rectangle noted by :func:`commit_geometry` into the
+    images (``na``: its count of changed faces)."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
+     sp, box, aff, amark, gmark, rowof, rowmark) = iws
+    atick = tick[0]  # commit_geometry marked the changed faces with it
     none_i = np.full(1, -1, np.int64)
-    atick = tick[0]  # commit_geometry marked the affected faces with it
-    for h in range(n_views):
+    for h in range(Y.shape[0]):
         rect = rects[h]
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue
-        tick[0] += 1
-        n = _candidates(h, rect, 0, tiles, fbox, falive, iws, tile, nx)
-        _render_rect(h, rect, n, -1, -1, sp, P[0], P, F, FW, uv, img, iws, none_i, none_i, 0,
-                     atick, True, background)
+        _render_view(h, rect, na, -1, -1, sp, P[0], P, F, FW, uv, falive, img, tiles, iws,
+                     none_i, none_i, 0, atick, True, background)
 
 
 # -- state --------------------------------------------------------------------------------
 
 def _workspace(n_views, nv, m, n_wedges, height, width):
+    """Scratch arrays: (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv,
+    ring, rects, buf, n3, sp, box, aff, amark, gmark, rowof, rowmark)."""
+    m = max(m, 1)
     return (np.zeros(m, np.int64), np.zeros(1, np.int64), np.empty(m, np.int64),
-            np.empty((max(m, 1), ROW)), np.empty((height, width)),
-            np.empty((height, width), np.int32), np.empty((height, width)),
+            np.empty((m, ROW)), np.empty((height, width)), np.empty((height, width), np.int64),
             np.full(nv, -1, np.int64), np.zeros((n_views, _MAX_RING, 4)),
             np.full(n_wedges, -1, np.int64), np.zeros((64, 2)), np.empty(_MAX_RING, np.int64),
             np.empty((n_views, 4), np.int64), np.empty(1024, np.int64), np.empty(3),
             np.empty(4), np.empty(4, np.int64), np.empty(8192, np.int64),
-            np.zeros(max(m, 1), np.int64))
+            np.zeros(m, np.int64), np.zeros(m, np.int64), np.zeros(m, np.int64),
+            np.zeros(m, np.int64))
 
 
 def dummy_state():
@@ -563,7 +610,8 @@ def dummy_state():
     img = (np.zeros((1, 4, 4)), np.zeros((1, 3)), np.zeros(1, np.bool_), np.zeros((1, 1, 1)),
            np.zeros((1, 1, 1)), np.zeros((1, 1, 4)), np.zeros((1, 1, 4), np.int32),
            np.zeros((1, 3)), np.zeros((1, 1, 4)), np.zeros(8), np.zeros((1, 1, 3), np.uint8),
-           np.zeros(len(STAT_NAMES), np.int64), np.zeros((1, 1, 1), np.int64))
+           np.zeros(len(STAT_NAMES), np.int64), np.zeros((1, 1, 1), np.int64),
+           np.zeros((1, 1, 1)))
     tiles = (np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64), np.zeros(1, np.int32),
              np.zeros((1, 1, 4), np.int32))
     return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
@@ -594,15 +642,18 @@ def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges):
            np.full(Y0.shape, 128.0), np.zeros((n_views, nv, 4)),
            np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)), np.zeros((n_views, nv, 4)),
            np.ascontiguousarray(consts, np.float64), np.ascontiguousarray(texture, np.uint8),
-           np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64))
+           np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64),
+           np.full(Y0.shape, np.inf))
     return img, _workspace(n_views, nv, m, n_wedges, height, width)
 
 
 @njit(cache=True, parallel=True)
 def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background):
     """Set every per-vertex and per-face quantity from the mesh and render all views
-    from scratch into ``Y`` and ``IDS`` (the face seen at each pixel, -1 empty)."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS = img
+    from scratch into ``Y``, ``IDS`` (the face seen at each pixel, -1 empty) and ``DZ``
+    (its depth)."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    vslot, ov_light, wslot, new_uv = iws[6], iws[7], iws[8], iws[9]
     n_views, height, width = Y.shape
     nv, m = P.shape[0], F.shape[0]
     gouraud = consts[6] != 0.0
@@ -620,22 +671,23 @@ def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background
             for h in range(n_views):
                 _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], consts, L[h, i], 0)
     live = np.flatnonzero(falive)
-    ids = IDS
     for h in prange(n_views):
         t = np.empty((max(live.shape[0], 1), ROW))
         depth = np.full((height, width), np.inf)
         local = np.full((height, width), -1, np.int32)
         none_i = np.full(1, -1, np.int64)
         for k in range(live.shape[0]):
-            fill_row(t, k, live[k], h, -1, -1, S[h, 0], P[0], P, F, FW, uv, S, L, iws[7],
-                     iws[8], iws[9], iws[10], none_i, none_i, 0, consts)
+            fill_screen(t, k, live[k], h, -1, -1, S[h, 0], S, F)
+            fill_shading(t, k, live[k], h, -1, -1, P[0], P, F, FW, uv, L, vslot, ov_light,
+                         wslot, new_uv, none_i, none_i, 0, consts)
             row_box(t, k, width, height, fbox[h, live[k]])
-            scan_row(t, k, 0, width - 1, 0, height - 1, cull[h], depth, local)
+            scan_row(t, k, k, 0, width - 1, 0, height - 1, cull[h], depth, local)
         shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], consts, texture,
                      background, Y[h])
         for r in range(height):
             for c in range(width):
-                ids[h, r, c] = live[local[r, c]] if local[r, c] >= 0 else -1
+                IDS[h, r, c] = live[local[r, c]] if local[r, c] >= 0 else -1
+                DZ[h, r, c] = depth[r, c]
 
 
 # -- the Python side ----------------------------------------------------------------------
@@ -721,6 +773,9 @@ class ImageTerm:
         counts = dict(zip(STAT_NAMES, (int(x) for x in img[11])))
         out = {k: counts[k] for k in ("image_evaluations", "pixels_shaded", "face_rows",
                                       "tile_rebuilds")}
+        if counts["run_cycles"] > 0:  # where the time goes
+            for k in ("gather", "shade", "setup"):
+                out[f"{k}_share"] = counts[f"{k}_cycles"] / counts["run_cycles"]
         out["rasterizer_share"] = (counts["raster_cycles"] / counts["run_cycles"]
                                    if counts["run_cycles"] > 0 else None)
         Y, Y0 = img[4], img[3]
@@ -731,4 +786,5 @@ class ImageTerm:
                         float(BACKGROUND))
             out["image_mismatched_pixels"] = int(np.count_nonzero(again[4] != Y))
             out["face_id_mismatched_pixels"] = int(np.count_nonzero(again[12] != img[12]))
+            out["depth_mismatched_pixels"] = int(np.count_nonzero(again[13] != img[13]))
         return out

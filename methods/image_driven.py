@@ -145,7 +145,8 @@ class ImageDriven(Method):
                         boundary_weight=0.0)
         result = simplify_mesh(work, target_faces, policy, image=term)
         stats["image_seconds"] = time.perf_counter() - t
-        for key in ("collapses", "cost_evaluations", "image_evaluations", "pixels_shaded", "face_rows",
-                    "rasterizer_share", "tile_rebuilds", "rejections"):
-            stats[key] = result.stats.get(key)
+        for key, value in result.stats.items():
+            if key in ("collapses", "cost_evaluations", "image_evaluations", "pixels_shaded",
+                       "face_rows", "tile_rebuilds", "rejections") or key.endswith("_share"):
+                stats[key] = value
         return SimplifyResult(result.mesh, stats, result.stop_reason)

@@ -405,8 +405,9 @@ class Refiner:
 
 
 def _max_on_cut(cut: Cut, err: np.ndarray) -> float:
-    """The largest error of a node just above the cut (its refined frontier): the
-    imperceptibility distance of the LOD (§3.4) when ``err`` is one."""
+    """The largest error among the applied collapses that could be raised next (the
+    simplifications in effect at the cut's frontier): the LOD's imperceptibility
+    distance (§3.4) when ``err`` holds imperceptibility distances."""
     frontier = (~cut.applied) & (cut.n_refined_children == 0)
     below = cut.applied & (cut.n_applied_parents == 0)
     pick = err[below] if below.any() else err[frontier]

@@ -132,11 +132,14 @@ ROW = 42
 
 
 @njit(cache=True)
-def scan_row(t, k, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
-    """Z-buffer row ``k`` of table ``t`` into the region [r_lo, r_hi] x [c_lo, c_hi].
+def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
+    """Z-buffer row ``k`` of table ``t``, a face with id ``fid``, into the region
+    [r_lo, r_hi] x [c_lo, c_hi].
 
-    ``depth`` and ``ids`` are indexed from (r_lo, c_lo); a pixel the face wins gets
-    ``ids = k``. Returns the number of pixel centres tested.
+    ``depth`` and ``ids`` are indexed from (r_lo, c_lo). A pixel goes to the face with
+    the smaller (depth, id): equal depths go to the lower id, which is what drawing
+    faces in increasing id with a ``<`` depth test gives (``GL_LESS``), whatever order
+    the faces are scanned in. Returns the number of pixel centres tested.
     """
     if t[k, T_W] <= 0.0 or t[k, T_W + 1] <= 0.0 or t[k, T_W + 2] <= 0.0:
         return 0
@@ -182,9 +185,10 @@ def scan_row(t, k, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
             z = (e0 * z0 + e1 * z1 + e2 * z2) * inv_area
             if z < -1.0 or z > 1.0:
                 continue
-            if z < depth[r - r_lo, c - c_lo]:
+            d = depth[r - r_lo, c - c_lo]
+            if z < d or (z == d and fid < ids[r - r_lo, c - c_lo]):
                 depth[r - r_lo, c - c_lo] = z
-                ids[r - r_lo, c - c_lo] = k
+                ids[r - r_lo, c - c_lo] = fid
     return (rmax - rmin + 1) * (cmax - cmin + 1)
 
 
@@ -319,7 +323,7 @@ def _render_kernel(screen, positions, faces, face_normals, light, uv, texture, e
                    light[v] if gouraud and shade else light[0], uv, gouraud, textured, shade)
         depth = np.full((height, width), np.inf)
         for k in range(m):
-            scan_row(t, k, 0, width - 1, 0, height - 1, cull_front[v], depth, ids[v])
+            scan_row(t, k, k, 0, width - 1, 0, height - 1, cull_front[v], depth, ids[v])
         if shade:
             shade_region(t, ids[v], 0, width - 1, 0, height - 1, eyes[v], consts, texture,
                          background, lum[v])
