@@ -26,6 +26,15 @@ Choices where the paper is open, and why:
   highlight (the paper's Gouraud-shaded dragon used specular reflection);
 * ``views`` other than 20 use a spherical Fibonacci set of directions (deterministic);
   the interior views are spread over the set (every second view for 10 of 20);
+* collapses that change no pixel cost exactly 0 (hidden interiors, changes smaller than
+  a pixel); among them the order would be arbitrary (the queue's tie-break by vertex
+  id), and simplifying a hidden surface in arbitrary order crumples it until every
+  further collapse folds a face over and is rejected, which leaves hidden faces in the
+  result. So the memoryless cost (§4.1's volume and boundary error, on geometry scaled
+  to a unit diagonal) is added with ``geometry_weight`` (default 1): at that scale it
+  is far below one pixel's change of one luminance level (a cost of 1), so it only
+  orders collapses whose image costs are equal; ``geometry_weight=0`` is the paper's
+  pure image cost;
 * lazy evaluation as in the engine: after a collapse, the kept vertex's edges are
   re-costed at once (their old entries name the removed vertex) and the other edges of
   its neighbours are marked dirty and re-costed when they reach the front of the queue
@@ -91,6 +100,8 @@ class ImageDriven(Method):
         #: faces after the memoryless pre-simplification; 0: ten times the target
         presimplify_faces: int = 0
         interior_views: int = 0
+        #: weight of the memoryless cost added as a tie-breaker (see the module notes)
+        geometry_weight: float = 1.0
 
     def _check(self):
         p = self.params
@@ -104,6 +115,8 @@ class ImageDriven(Method):
         if not 0 <= p.interior_views <= p.views:
             raise ParamError(f"image-driven: interior_views must be in 0..views ({p.views}), "
                              f"got {p.interior_views}")
+        if p.geometry_weight < 0:
+            raise ParamError("image-driven: geometry_weight must be >= 0")
         if p.presimplify_faces < 0:
             raise ParamError("image-driven: presimplify_faces must be >= 0 (0: ten times "
                              "the target)")
@@ -140,9 +153,9 @@ class ImageDriven(Method):
                          cull_front=tuple(cull))
         stats["reference_seconds"] = time.perf_counter() - t
         t = time.perf_counter()
-        # memoryless placement, image cost only (§4.1, §4.2)
-        policy = Policy(placement="memoryless", quadric_weight=0.0, memoryless_weight=0.0,
-                        boundary_weight=0.0)
+        # memoryless placement (§4.1), the image cost (§4.2) and the geometric tie-breaker
+        policy = Policy(placement="memoryless", quadric_weight=0.0,
+                        memoryless_weight=p.geometry_weight, boundary_weight=0.0)
         result = simplify_mesh(work, target_faces, policy, image=term)
         stats["image_seconds"] = time.perf_counter() - t
         for key, value in result.stats.items():

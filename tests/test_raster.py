@@ -171,3 +171,22 @@ def test_matches_evaluation_renderer_without_msaa(shading):
     value = _d_rms(ours, luminance(images))
     print(f"d_rms({shading}) = {value:.4f}")
     assert value <= 1.0
+
+
+def test_textured_matches_evaluation_renderer_where_textures_are_not_minified():
+    """bunny-textured's atlas is seen at about its own resolution, where bilinear
+    sampling and the evaluation renderer's trilinear mipmaps agree (the procedural
+    torus's fine 1024² texture, minified several times, does not: see the README)."""
+    render = pytest.importorskip("metrics.render")
+    from bench.models import BUNNY_TEXTURED
+    from metrics.image import luminance
+
+    mesh = BUNNY_TEXTURED.load()
+    cameras = protocol_cameras(mesh)
+    try:
+        images = render.get_renderer(256, 256, 4).render(mesh, cameras, "flat", msaa=False)
+    except RuntimeError as error:  # no EGL on this machine
+        pytest.skip(str(error))
+    value = _d_rms(rasterize_luminance(mesh, cameras, 256, 256, "flat"), luminance(images))
+    print(f"d_rms(textured) = {value:.4f}")
+    assert value <= 1.0

@@ -1,5 +1,5 @@
-"""``bench list [methods|models|metrics]``: what is registered, from where, and whether
-it can run here."""
+"""``bench list [methods|models|metrics|suites]``: what is registered, from where, and
+whether it can run here; the named experiment suites."""
 
 from __future__ import annotations
 
@@ -13,19 +13,30 @@ KINDS = {"methods": "method", "models": "model", "metrics": "metric"}
 def add_parser(sub, name: str) -> None:
     p = sub.add_parser(name, help="list registered methods, models and metrics",
                        description=__doc__)
-    p.add_argument("what", nargs="?", choices=list(KINDS), help="only this kind (default: all)")
+    p.add_argument("what", nargs="?", choices=list(KINDS) + ["suites"],
+                   help="only this kind (default: all)")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
-    kinds = [args.what] if args.what else list(KINDS)
+    kinds = [args.what] if args.what else list(KINDS) + ["suites"]
     for i, plural in enumerate(kinds):
         if i:
             print()
-        rows = [_row(KINDS[plural], e) for e in registry(KINDS[plural])]
+        if plural == "suites":
+            rows = _suite_rows()
+        else:
+            rows = [_row(KINDS[plural], e) for e in registry(KINDS[plural])]
         print(f"{plural} ({len(rows)})")
         _table(rows)
     return 0
+
+
+def _suite_rows() -> list[dict]:
+    from bench.suites import SUITES
+
+    return [{"name": s.name, "models": ",".join(s.models), "detail": s.description}
+            for s in SUITES.values()]
 
 
 def _row(kind: str, entry) -> dict:
