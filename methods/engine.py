@@ -83,7 +83,7 @@ from methods.memoryless_math import lt_cost, lt_placement, r5_texture_coordinate
 from methods.raster import BACKGROUND
 
 __all__ = ["Policy", "EngineResult", "simplify_mesh", "PLACEMENTS", "STOP_REASONS",
-           "face_quadrics", "initial_quadrics", "quadric_error"]
+           "face_quadrics", "initial_quadrics", "quadric_error", "barycentric_uv"]
 
 PLACEMENTS = {"optimal": 0, "endpoints": 1, "midpoint": 2, "memoryless": 3}
 
@@ -133,6 +133,12 @@ class Policy:
     seam_rule : bool
         Seam vertices move only along their seam (see ``_evaluate``), so every UV chart
         survives; without it seams stay closed but may drift across charts.
+    uv_correction : bool
+        González et al. 2008's texture-coordinate correction (§3, the α, β equations):
+        a wedge whose vertex moves takes the UV that the texture map of one of its own
+        triangles (before the collapse) gives the new position; see ``_uv_correction``.
+    boundary_rule : bool
+        A boundary vertex is never merged into an interior one (see ``_evaluate``).
     """
 
     placement: str = "optimal"
@@ -145,6 +151,8 @@ class Policy:
     seam_rule: bool = True
     r5_uv: bool = True
     texture_weight: float = 0.0
+    uv_correction: bool = False
+    boundary_rule: bool = False
 
     def __post_init__(self):
         if self.placement not in PLACEMENTS:
@@ -673,20 +681,25 @@ def _add_reduced(g, uv_now, qsum):
 
 @njit(cache=True)
 def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, tick, ws,
-              placement, weights, seam_rule, qsum, out_p, uv, borders, inv_area, no_record,
-              WQ, tws, ictx):
+              placement, weights, seam_rule, boundary_rule, qsum, out_p, uv, borders, inv_area,
+              no_record, WQ, tws, ictx):
     """Cost of collapsing edge (a, b) and where the kept vertex goes.
 
-    ``weights`` = (quadric, memoryless, canny, image) cost-term weights; ``ws`` = the Lindstrom–Turk
-    workspace (tri_a, tri_b, tri_c, bnd_a, bnd_b, link). Returns (cost, keep): keep is
-    the vertex that survives (the other is removed), and the new position is written to
-    ``out_p``. cost is +inf when the seam rule forbids the collapse.
+    ``weights`` = (quadric, memoryless, canny, image, entropy) cost-term weights; ``ws`` =
+    the Lindstrom–Turk workspace (tri_a, tri_b, tri_c, bnd_a, bnd_b, link). Returns
+    (cost, keep): keep is the vertex that survives (the other is removed), and the new
+    position is written to ``out_p``. cost is +inf when the seam rule forbids the
+    collapse.
 
     Seam rule (``seam_rule``), as vertex kinds: a seam vertex (two or more wedges) may
     only move along its seam. So an edge between a seam vertex and an ordinary one is a
     half-edge collapse onto the seam vertex, which stays where it is; an edge between two
     seam vertices must itself be a seam edge (else it would cut a UV chart in two), and
     may then be placed freely.
+
+    Boundary rule (``boundary_rule``): likewise a boundary vertex is never merged into an
+    interior one (the hole would grow into the surface); an edge from a boundary vertex
+    to an interior one keeps the boundary vertex where it is.
     """
     w_q, w_lt = weights[0], weights[1]
     for i in range(10):
@@ -710,6 +723,12 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
             forced = a
         elif sb:
             forced = b
+    if boundary_rule and vboundary[a] != vboundary[b]:  # the boundary end stays
+        bkeep = a if vboundary[a] else b
+        if forced != -1 and forced != bkeep:  # the seam rule wants the other end kept
+            out_p[:] = P[b]
+            return np.inf, b
+        forced = bkeep
     tri_a, tri_b, tri_c, bnd_a, bnd_b, link = ws
     n_tris = n_bnd = n_link = 0
     l2 = ((P[a, 0] - P[b, 0]) ** 2 + (P[a, 1] - P[b, 1]) ** 2 + (P[a, 2] - P[b, 2]) ** 2)
@@ -730,11 +749,11 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
                       n_bnd, link, n_link, l2)
         cb = _cost_at(P[b], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
                       n_bnd, link, n_link, l2)
-        if weights[3] != 0.0:
-            ca += weights[3] * _image_term(b, a, P[a], P, F, FW, uv, falive, vhead, cnext,
-                                           efaces, ictx)
-            cb += weights[3] * _image_term(a, b, P[b], P, F, FW, uv, falive, vhead, cnext,
-                                           efaces, ictx)
+        if weights[3] != 0.0 or weights[4] != 0.0:
+            ca += _view_cost(b, a, P[a], P, F, FW, uv, falive, vhead, cnext, efaces, weights,
+                             ictx)
+            cb += _view_cost(a, b, P[b], P, F, FW, uv, falive, vhead, cnext, efaces, weights,
+                             ictx)
         keep = a if ca < cb else b
         out_p[:] = P[keep]
         return min(ca, cb) + canny, keep
@@ -751,10 +770,23 @@ def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, 
         _optimal_point(qsum, P[a], P[b], out_p)
     cost = _cost_at(out_p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
                     n_bnd, link, n_link, l2) + canny
-    if weights[3] != 0.0:
-        cost += weights[3] * _image_term(a if keep == b else b, keep, out_p, P, F, FW, uv,
-                                         falive, vhead, cnext, efaces, ictx)
+    if weights[3] != 0.0 or weights[4] != 0.0:
+        cost += _view_cost(a if keep == b else b, keep, out_p, P, F, FW, uv, falive, vhead,
+                           cnext, efaces, weights, ictx)
     return cost, keep
+
+
+@njit(cache=True)
+def _view_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, weights, ictx):
+    """The rendered cost terms of collapsing u into v at p, from one re-render of the
+    affected rectangles: ``weights[3]`` × equation 8 of Lindstrom & Turk 2000 plus
+    ``weights[4]`` × the sum over views of |change of the viewpoint entropy| (González
+    et al. 2008, §3), which :func:`methods.image_cost.image_cost` leaves in the image
+    state."""
+    cost = weights[3] * _image_term(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, ictx)
+    if weights[4] != 0.0:
+        cost += weights[4] * ictx[0][14][6][3]
+    return cost
 
 
 @njit(cache=True)
@@ -908,13 +940,132 @@ def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fr
 
 
 @njit(cache=True)
+def barycentric_uv(q, p1, p2, p3, t1, t2, t3, out):
+    """González et al. 2008, §3 "Texture coordinates": the texture coordinates that the
+    triangle (p1, p2, p3) with corner UVs (t1, t2, t3) gives the point ``q``.
+
+    Q - P1 = α U + β V + γ N with U = P2 - P1, V = P3 - P1 and N = U × V; then
+    T = α (T2 - T1) + β (T3 - T1) + T1 (γ, the offset along the normal, is dropped).
+    As N is orthogonal to U and V, α and β solve the 2 × 2 Gram system
+    [U·U U·V; U·V V·V] (α, β) = (Q'·U, Q'·V), the same solution as the paper's 3 × 3
+    system. Writes ``out`` (2,) and returns min(α, β, 1 - α - β) (≥ 0: q projects
+    inside the triangle), or -inf for a degenerate triangle."""
+    ux, uy, uz = p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]
+    vx, vy, vz = p3[0] - p1[0], p3[1] - p1[1], p3[2] - p1[2]
+    qx, qy, qz = q[0] - p1[0], q[1] - p1[1], q[2] - p1[2]
+    uu = ux * ux + uy * uy + uz * uz
+    uv_ = ux * vx + uy * vy + uz * vz
+    vv = vx * vx + vy * vy + vz * vz
+    det = uu * vv - uv_ * uv_
+    if not det > 1e-300 or det <= 1e-14 * uu * vv:
+        return -np.inf
+    qu = qx * ux + qy * uy + qz * uz
+    qv = qx * vx + qy * vy + qz * vz
+    alpha = (vv * qu - uv_ * qv) / det
+    beta = (uu * qv - uv_ * qu) / det
+    out[0] = alpha * (t2[0] - t1[0]) + beta * (t3[0] - t1[0]) + t1[0]
+    out[1] = alpha * (t2[1] - t1[1]) + beta * (t3[1] - t1[1]) + t1[1]
+    return min(alpha, beta, 1.0 - alpha - beta)
+
+
+@njit(cache=True)
+def _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex, wmap_from,
+                   wmap_to, npairs, targets, new_uv, moved_t):
+    """New UVs of the merged vertex's wedges by :func:`barycentric_uv` (González et al.
+    2008, §3), before the collapse changes anything. A wedge whose vertex does not move
+    (the kept end of a half-edge collapse) keeps its UV. For one that moves, the paper
+    leaves open which "modified triangle" gives the new UV; we take, among the live
+    triangles around the edge that use this wedge (or a wedge merging into it), the one
+    in which the new position lies deepest (largest smallest barycentric coordinate), so
+    a point inside one of them gets that triangle's exact UV. Fills ``targets``,
+    ``new_uv`` and ``moved_t`` (1: corrected); returns how many targets."""
+    nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)
+    res = np.empty(2)
+    for ti in range(nt):
+        t = targets[ti]
+        moved_t[ti] = 0
+        x0 = wedge_vertex[t]
+        if P[x0, 0] == p[0] and P[x0, 1] == p[1] and P[x0, 2] == p[2]:
+            continue
+        best = -np.inf
+        for side in range(2):
+            x = u if side == 0 else v
+            c = vhead[x]
+            while c != -1:
+                f = c // 3
+                if falive[f] and _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs) == t:
+                    depth = barycentric_uv(p, P[F[f, 0]], P[F[f, 1]], P[F[f, 2]],
+                                           uv[FW[f, 0]], uv[FW[f, 1]], uv[FW[f, 2]], res)
+                    if depth > best:
+                        best = depth
+                        new_uv[ti, 0], new_uv[ti, 1] = res[0], res[1]
+                        moved_t[ti] = 1
+                c = cnext[c]
+    return nt
+
+
+@njit(cache=True)
+def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, kinds):
+    """González et al. 2008, Algorithm 2, in welded terms, for collapsing u into v:
+    kinds[0] += 1 when the edge's faces pair two different wedge pairs (the real edge
+    and its *twin* at a seam or a sub-mesh joint collapse together); kinds[1] += 1 and
+    kinds[2] += (their number) when wedges of u have no partner at v (the paper's
+    disconnected vertices, which a *fake* edge or a translation brings to v)."""
+    distinct = 0
+    for i in range(npairs):
+        seen = False
+        for j in range(i):
+            if wmap_from[j] == wmap_from[i] and wmap_to[j] == wmap_to[i]:
+                seen = True
+        if not seen:
+            distinct += 1
+    if distinct >= 2:
+        kinds[0] += 1
+    stranded = 0
+    first = np.full(16, -1, np.int64)
+    c = vhead[u]
+    while c != -1:
+        f = c // 3
+        if falive[f] and not _has_vertex(F, f, v):
+            w = FW[f, c % 3]
+            if _mapped(w, wmap_from, wmap_to, npairs) == w:
+                seen = False
+                for i in range(min(stranded, 16)):
+                    if first[i] == w:
+                        seen = True
+                if not seen:
+                    if stranded < 16:
+                        first[stranded] = w
+                    stranded += 1
+        c = cnext[c]
+    if stranded > 0:
+        kinds[1] += 1
+        kinds[2] += stranded
+
+
+@njit(cache=True)
+def _has_vertex(F, f, x):
+    return F[f, 0] == x or F[f, 1] == x or F[f, 2] == x
+
+
+@njit(cache=True)
 def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv,
               has_uv, efaces, wmap_from, wmap_to, log_changed, n_changed, use_r5, face_kappa,
-              r5ws, WQ, tws):
+              r5ws, WQ, tws, uv_fix, kinds):
     """Merge u into v at p. Returns (faces removed, changed count) and fills efaces with
-    the removed faces."""
+    the removed faces. ``kinds`` counts twin and stranded-wedge collapses
+    (:func:`_count_kinds`); ``uv_fix`` applies :func:`_uv_correction` last."""
     # Pair the wedges of u and v across each removed face (same side of the edge).
     npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to)
+    _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, kinds)
+    n_fix = 0
+    cap = 64 if uv_fix else 0  # own scratch: the UV updates below reuse r5ws and tws
+    fix_t = np.empty(cap, np.int64)
+    fix_uv = np.empty((cap, 2))
+    fix_m = np.zeros(cap, np.int64)
+    if has_uv and uv_fix:
+        n_fix = _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex,
+                               wmap_from, wmap_to, npairs, fix_t, fix_uv, fix_m)
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     t = _edge_parameter(u, v, p, P)  # for merged attributes
     if has_uv and WQ.shape[0] > 1:  # Garland-Heckbert 1998: merge, then minimise UVs
@@ -937,6 +1088,10 @@ def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, 
             a, b = wmap_from[i], wmap_to[i]
             uv[b, 0] = (1.0 - t) * uv[a, 0] + t * uv[b, 0]
             uv[b, 1] = (1.0 - t) * uv[a, 1] + t * uv[b, 1]
+    for i in range(n_fix):  # González et al. 2008's correction replaces the above
+        if fix_m[i] == 1:
+            uv[fix_t[i], 0] = fix_uv[i, 0]
+            uv[fix_t[i], 1] = fix_uv[i, 1]
     for i in range(k):
         falive[efaces[i]] = False
     for i in range(k):  # the apexes of removed faces hold dead corners now
@@ -985,8 +1140,9 @@ def _push(heap, cost, a, b, sa, sb, p, keep):
 @njit(cache=True)
 def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
          target,
-         placement, weights, cos_limit, boundary_lock, seam_rule, verify, max_collapses,
-         borders, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws):
+         placement, weights, cos_limit, boundary_lock, seam_rule, boundary_rule, verify,
+         max_collapses,
+         borders, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws, uv_fix, kinds):
     run_start = cycles()
     nv = P.shape[0]
     mark = np.zeros(nv, np.int64)
@@ -1030,7 +1186,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     blk_head = np.full(nv, -1, np.int64)
     n_rec = 0
     # the Lindstrom-Turk, Canny and image terms look at the triangles around an edge
-    neighbourhood_cost = weights[1] != 0.0 or weights[2] != 0.0 or weights[3] != 0.0
+    rendered = weights[3] != 0.0 or weights[4] != 0.0  # image and/or entropy terms
+    neighbourhood_cost = weights[1] != 0.0 or weights[2] != 0.0 or rendered
     no_record = np.empty((0, 2), np.int64)
 
     heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0), 0.0, 0.0, 0.0,
@@ -1039,7 +1196,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     # With the image term, the kept vertex's edges are queued lazily too (Lindstrom &
     # Turk 2000, §4.2.2: an edge keeps its key and is re-costed when it reaches the
     # front); their last keys are remembered per edge.
-    lazy_new = weights[3] != 0.0
+    lazy_new = rendered
     last_key = Dict.empty(key_type=types.int64, value_type=types.float64)
     for f in range(F.shape[0]):
         if not falive[f]:
@@ -1048,7 +1205,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             a, b = F[f, j], F[f, (j + 1) % 3]
             if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
                 cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule,
+                                       efaces, mark, tick, ws, placement, weights,
+                                       seam_rule, boundary_rule,
                                        qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
                 evaluations += 1
                 _push(heap, cost, a, b, 0, 0, p, keep)
@@ -1075,7 +1233,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
                 continue
             cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule,
+                                       efaces, mark, tick, ws, placement, weights,
+                                       seam_rule, boundary_rule,
                                        qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
             evaluations += 1
             _push(heap, cost, a, b, stamp[a], stamp[b], p, keep)
@@ -1086,7 +1245,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
             continue
         if verify:  # re-cost: the stored cost and placement must be current
             fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                    efaces, mark, tick, ws, placement, weights, seam_rule,
+                                    efaces, mark, tick, ws, placement, weights,
+                                    seam_rule, boundary_rule,
                                     qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
             evaluations += 1
             if abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
@@ -1129,10 +1289,10 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
         removed, n_changed = _collapse(u, v, p.copy(), P, Q, F, FW, falive, vhead, cnext,
                                        valive, wedge_vertex, uv, has_uv, efaces, wmap_from,
                                        wmap_to, log_changed, n_changed, use_r5, face_kappa,
-                                       r5ws, WQ, tws)
+                                       r5ws, WQ, tws, uv_fix, kinds)
         for i in range(min(removed, 2)):
             log_faces[n, i] = efaces[i]
-        if weights[3] != 0.0:  # bring the images up to date
+        if rendered:  # bring the images (or face ids) up to date
             ok, changed = commit_geometry(v, efaces, removed, P, F, FW, uv, falive, vhead,
                                           cnext, valive, img, tiles, iws)
             if not ok:
@@ -1179,7 +1339,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                 _push(heap, key, v, w, stamp[v], stamp[w], p, -1)
                 continue
             c2, k2 = _evaluate(v, w, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                               efaces, mark, tick, ws, placement, weights, seam_rule, qsum,
+                               efaces, mark, tick, ws, placement, weights,
+                               seam_rule, boundary_rule, qsum,
                                p, uv, borders, inv_area, no_record, WQ, tws, ictx)
             evaluations += 1
             _push(heap, c2, v, w, stamp[v], stamp[w], p, k2)
@@ -1201,7 +1362,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                     if y == x:
                         continue
                     c2, k2 = _evaluate(x, y, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights, seam_rule,
+                                       efaces, mark, tick, ws, placement, weights,
+                                       seam_rule, boundary_rule,
                                        qsum, p, uv, borders, inv_area, no_record, WQ,
                                        tws, ictx)
                     evaluations += 1
@@ -1432,7 +1594,9 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     face_kappa = _face_kappa(P, F, FW, uv) if use_r5 else np.ones(1)
     cos_limit = math.cos(math.radians(policy.max_normal_rotation))
     weights = np.array([policy.quadric_weight, policy.memoryless_weight, policy.canny_weight,
-                        0.0 if image is None else image.weight], np.float64)
+                        0.0 if image is None else image.weight,
+                        0.0 if image is None else getattr(image, "entropy_weight", 0.0)],
+                       np.float64)
     if image is None:
         img, tiles, iws = dummy_state()
     else:
@@ -1441,11 +1605,14 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
         img, tiles, iws = image.state(mesh, P, F, FW, uv, falive, vhead, cnext, valive, lo,
                                       scale)
     limit = max(1, nv) if max_collapses is None else max(0, int(max_collapses))
+    kinds = np.zeros(3, np.int64)
     out = _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex,
                uv, has_uv, int(target_faces), PLACEMENTS[policy.placement], weights, cos_limit,
                bool(policy.boundary_lock),
-               bool(policy.seam_rule and mesh.n_vertices != w.n_vertices), bool(verify),
-               limit, borders_arr, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws)
+               bool(policy.seam_rule and mesh.n_vertices != w.n_vertices),
+               bool(policy.boundary_rule), bool(verify),
+               limit, borders_arr, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws,
+               bool(policy.uv_correction and has_uv), kinds)
     (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
      log_faces, log_start, log_changed, log_cost) = out
     image_stats = {} if image is None else image.statistics(
@@ -1464,6 +1631,9 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
              "rejections": {name: int(c) for name, c in zip(REJECTIONS, rejects)},
              "engine_seconds": seconds,
              "collapses_per_second": n / seconds if seconds > 0 else None}
+    # González et al. 2008, Algorithm 2: every collapse is a real edge; see _count_kinds
+    stats.update(twin_collapses=int(kinds[0]), stranded_collapses=int(kinds[1]),
+                 stranded_wedges=int(kinds[2]))
     if verify:
         stats["lazy_mismatches"] = int(mismatches)
     stats.update(image_stats)

@@ -35,6 +35,15 @@ The rectangle of a view is the union of the old and the new pixel boxes of every
 around the edge (the paper's ``[[e]] ∪ [[v]]``); with gouraud shading also the boxes of
 the faces around the vertices whose normal changes (the paper's footnote 3).
 
+The same region re-renders give the *viewpoint entropy* term of González et al. 2008
+(§3, the cost of Castelló et al. 2007; ``ImageTerm.entropy_weight``): the state then
+also keeps, per view, the pixel count a_f of every face (and of the background), the
+sum S = sum a log a and the total A, so that H_v = log A - S / A. A candidate's new face
+ids inside its rectangles, compared with ``IDS``, give the count changes; only the faces
+whose count changes enter S and A, so ΔH_v costs one pass over the rectangle
+(:func:`_entropy_change`), and a commit updates the counts from the same pixels. With
+``weight`` 0 (entropy alone) no pixel is shaded: only ``IDS`` and ``DZ`` are kept.
+
 Tile index versus the paper's row/column buckets: the paper keeps a hash table of
 triangles per pixel row and column and intersects the unions over the rectangle with
 time stamps. Tiles need no intersection (one traversal), list a small face in one to
@@ -57,7 +66,8 @@ from numba.extending import intrinsic
 from methods.raster import (ROW, T_L, T_N, T_P, T_UV, T_W, T_X, T_Y, T_Z, scan_row, shade_pixel,
                             shade_region)
 
-__all__ = ["ImageTerm", "TILE", "STAT_NAMES", "dummy_state", "new_state", "full_render"]
+__all__ = ["ImageTerm", "TILE", "STAT_NAMES", "dummy_state", "new_state", "full_render",
+           "entropy_init", "entropy_state", "view_entropy"]
 
 #: Side of the square tiles of the per-view face index, in pixels.
 TILE = 8
@@ -349,6 +359,93 @@ def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
     return n
 
 
+# -- viewpoint entropy (González et al. 2008, §3 "Error metric") -----------------------
+# ``ent`` = (CNT (V, m + 1) int64 pixels per view of each face, index f + 1, 0 = the
+# background; SUM (V,) float64 = sum of a log a over the counted entries; TOT (V,) int64
+# = sum of a; dcnt, emark, touched (m + 1,) int64 scratch; flags (4,) float64 = (entropy
+# on, background counted, luminance shaded, sum of |dH_v| of the last evaluation);
+# etick (1,) int64).
+
+@njit(cache=True)
+def _xlogx(a):
+    return a * np.log(a) if a > 0.0 else 0.0
+
+
+@njit(cache=True)
+def view_entropy(s, a):
+    """H = log A - S / A, with S = sum a_i log a_i and A = sum a_i: the viewpoint
+    entropy -sum (a_i / A) log(a_i / A) (natural logarithm); 0 for an empty view."""
+    return np.log(a) - s / a if a > 0.0 else 0.0
+
+
+@njit(cache=True)
+def entropy_init(IDS, ent):
+    """Set the per-view face pixel counts, their sum of a log a and total from ``IDS``."""
+    CNT, SUM, TOT, dcnt, emark, touched, flags, etick = ent
+    n_views, height, width = IDS.shape
+    first = 0 if flags[1] != 0.0 else 1  # the background is entry 0
+    for h in range(n_views):
+        for x in range(CNT.shape[1]):
+            CNT[h, x] = 0
+        for r in range(height):
+            for c in range(width):
+                CNT[h, IDS[h, r, c] + 1] += 1
+        s = 0.0
+        a = 0
+        for x in range(first, CNT.shape[1]):
+            if CNT[h, x] > 0:
+                s += _xlogx(float(CNT[h, x]))
+                a += CNT[h, x]
+        SUM[h] = s
+        TOT[h] = a
+
+
+@njit(cache=True)
+def _entropy_change(h, rect, ids, IDS, ent, commit):
+    """Change of view ``h``'s entropy when the faces seen in ``rect`` become ``ids``
+    (rectangle-relative) instead of ``IDS``: only the faces whose pixel count changes
+    enter S = sum a log a and A. With ``commit`` the counts, S and A are updated."""
+    CNT, SUM, TOT, dcnt, emark, touched, flags, etick = ent
+    c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
+    etick[0] += 1
+    tk = etick[0]
+    n = 0
+    for r in range(r0, r1 + 1):
+        for c in range(c0, c1 + 1):
+            old = IDS[h, r, c] + 1
+            new = ids[r - r0, c - c0] + 1
+            if old == new:
+                continue
+            if emark[old] != tk:
+                emark[old] = tk
+                touched[n] = old
+                n += 1
+            if emark[new] != tk:
+                emark[new] = tk
+                touched[n] = new
+                n += 1
+            dcnt[old] -= 1
+            dcnt[new] += 1
+    s = SUM[h]
+    a = TOT[h]
+    for i in range(n):
+        x = touched[i]
+        d = dcnt[x]
+        dcnt[x] = 0
+        cur = CNT[h, x]
+        if commit:
+            CNT[h, x] = cur + d
+        if d == 0 or (x == 0 and flags[1] == 0.0):
+            continue
+        s += _xlogx(float(cur + d)) - _xlogx(float(cur))
+        a += d
+    dh = view_entropy(s, float(a)) - view_entropy(SUM[h], float(TOT[h]))
+    if commit:
+        SUM[h] = s
+        TOT[h] = a
+    return dh
+
+
 @njit(cache=True)
 def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws, wfrom,
                  wto, npairs, atick, commit, background):
@@ -365,7 +462,7 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     from-scratch render's. With ``commit`` the pixels go into ``Y``, ``IDS`` and
     ``DZ``; otherwise returns the change of the squared error (equation 8).
     """
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
     (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
      sp_, box, aff, amark, gmark, rowof, rowmark) = iws
     n_views, height, width = Y.shape
@@ -412,6 +509,20 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
             scan_row(t, k, f, hc0, hc1, hr0, hr1, cull[h], hole_depth, hole_ids)
         n = n2
     mid = cycles()
+    eflags = ent[6]
+    if eflags[0] != 0.0:  # viewpoint entropy: the count changes inside the rectangle
+        dh = _entropy_change(h, rect, ids, IDS, ent, commit)
+        if not commit:
+            eflags[3] += abs(dh)
+    if eflags[2] == 0.0:  # face ids only, no luminance (entropy without equation 8)
+        if commit:
+            for r in range(r0, r1 + 1):
+                for c in range(c0, c1 + 1):
+                    IDS[h, r, c] = ids[r - r0, c - c0]
+                    DZ[h, r, c] = depth[r - r0, c - c0]
+        stats[2] += n
+        stats[3] += cycles() - start
+        return 0.0
     tick[0] += 1
     filled = tick[0]  # rows whose shading columns are filled are marked with it
     cost = 0.0
@@ -424,6 +535,12 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
             y = background
             if f >= 0:
                 k = rowof[f]
+                if k >= n or cand[k] != f:  # kept face, only its shading changes: a row
+                    k = n
+                    cand[k] = f
+                    rowof[f] = k
+                    fill_screen(t, k, f, h, u, v, sp, S, F)
+                    n += 1
                 if rowmark[k] != filled:
                     fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, vslot, ov_light,
                                  wslot, new_uv, wfrom, wto, npairs, consts)
@@ -452,12 +569,13 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
     squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
     whose texture coordinates become ``target_uv[:nt]``."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
     (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
      sp, box, aff, amark, gmark, rowof, rowmark) = iws
     n_views, height, width = Y.shape
     gouraud = consts[6] != 0.0
     stats[0] += 1
+    ent[6][3] = 0.0  # sum of |dH_v| of this evaluation, read by the engine
     setup_start = cycles()
     for i in range(nt):
         wslot[targets[i]] = i
@@ -465,7 +583,10 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     # the faces around the edge ([[e]]; those holding both ends disappear)
     tick[0] += 1
     na = _faces_around(u, vhead, cnext, falive, mark, tick[0], aff, 0)
-    na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, na)
+    if not (p[0] == P[v, 0] and p[1] == P[v, 1] and p[2] == P[v, 2]):
+        na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, na)
+    # else a half-edge collapse: v stays, so its faces without u keep their geometry,
+    # texture coordinates and pixels (gouraud adds them below, as v's normal changes)
     ns = na
     nr = 0
     if gouraud:  # vertices whose normal changes, and the faces they shade (footnote 3)
@@ -521,7 +642,7 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
     the changed faces in the tile index. Returns (whether no tile overflowed, how many
     faces around ``v`` changed); after an overflow rebuild the index before
     :func:`commit_render`."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
     (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
      sp, box, aff, amark, gmark, rowof, rowmark) = iws
     n_views, height, width = Y.shape
@@ -576,7 +697,7 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
 def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
     """Re-render every view's rectangle noted by :func:`commit_geometry` into the
     images (``na``: its count of changed faces)."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
     (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
      sp, box, aff, amark, gmark, rowof, rowmark) = iws
     atick = tick[0]  # commit_geometry marked the changed faces with it
@@ -605,19 +726,29 @@ def _workspace(n_views, nv, m, n_wedges, height, width):
             np.zeros(m, np.int64))
 
 
+def entropy_state(n_views, m, on=False, background=True, shade=True):
+    """The ``ent`` member of an image state: per-view face pixel counts and scratch
+    (see :func:`entropy_init`); (1, 1) placeholders when the entropy term is off."""
+    size = m + 1 if on else 1
+    flags = np.array([float(on), float(background), float(shade), 0.0])
+    return (np.zeros((n_views if on else 1, size), np.int64), np.zeros(max(n_views, 1)),
+            np.zeros(max(n_views, 1), np.int64), np.zeros(size, np.int64),
+            np.zeros(size, np.int64), np.zeros(size, np.int64), flags, np.zeros(1, np.int64))
+
+
 def dummy_state():
     """An image state of the right types for engine runs without the image term."""
     img = (np.zeros((1, 4, 4)), np.zeros((1, 3)), np.zeros(1, np.bool_), np.zeros((1, 1, 1)),
            np.zeros((1, 1, 1)), np.zeros((1, 1, 4)), np.zeros((1, 1, 4), np.int32),
            np.zeros((1, 3)), np.zeros((1, 1, 4)), np.zeros(8), np.zeros((1, 1, 3), np.uint8),
            np.zeros(len(STAT_NAMES), np.int64), np.zeros((1, 1, 1), np.int64),
-           np.zeros((1, 1, 1)))
+           np.zeros((1, 1, 1)), entropy_state(1, 1))
     tiles = (np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64), np.zeros(1, np.int32),
              np.zeros((1, 1, 4), np.int32))
     return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
 
 
-def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges):
+def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges, entropy=None):
     """Arrays of an image state; :func:`full_render` fills them.
 
     Parameters
@@ -635,6 +766,9 @@ def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges):
     texture : ndarray (h, w, 3) uint8
     nv, m, n_wedges : int
         Vertices, faces and wedges of the engine mesh.
+    entropy : (bool, bool), optional
+        (background counted, luminance shaded): keep the viewpoint entropy's face pixel
+        counts (:func:`entropy_init` fills them after :func:`full_render`).
     """
     n_views, height, width = Y0.shape
     img = (np.ascontiguousarray(M, np.float64), np.ascontiguousarray(eyes, np.float64),
@@ -643,7 +777,9 @@ def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges):
            np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)), np.zeros((n_views, nv, 4)),
            np.ascontiguousarray(consts, np.float64), np.ascontiguousarray(texture, np.uint8),
            np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64),
-           np.full(Y0.shape, np.inf))
+           np.full(Y0.shape, np.inf),
+           entropy_state(n_views, m) if entropy is None else
+           entropy_state(n_views, m, True, entropy[0], entropy[1]))
     return img, _workspace(n_views, nv, m, n_wedges, height, width)
 
 
@@ -652,7 +788,7 @@ def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background
     """Set every per-vertex and per-face quantity from the mesh and render all views
     from scratch into ``Y``, ``IDS`` (the face seen at each pixel, -1 empty) and ``DZ``
     (its depth)."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
     vslot, ov_light, wslot, new_uv = iws[6], iws[7], iws[8], iws[9]
     n_views, height, width = Y.shape
     nv, m = P.shape[0], F.shape[0]
@@ -708,8 +844,15 @@ class ImageTerm:
     cull_front : sequence of V bool, optional
         Views drawn with front faces culled (§5.2's interior views).
     weight : float
-        Multiplies equation 8 in the engine's cost sum.
+        Multiplies equation 8 in the engine's cost sum. 0 with ``entropy_weight`` set:
+        only face ids are rendered (no shading, ``Y`` is not kept up to date).
     constants : metrics.render.ShadingConstants, optional
+    entropy_weight : float
+        Multiplies the sum over views of |change of the viewpoint entropy| (González et
+        al. 2008, §3), computed from the same region re-renders (0: off).
+    entropy_background : bool
+        Count the background as one more "face" in the entropy (Vázquez et al.'s
+        definition); otherwise only the faces' projected areas.
     """
 
     cameras: tuple
@@ -719,6 +862,8 @@ class ImageTerm:
     cull_front: tuple | None = None
     weight: float = 1.0
     constants: object = None
+    entropy_weight: float = 0.0
+    entropy_background: bool = True
 
     def _frame(self, lo, scale):
         """Per-view clip transforms and eyes in engine coordinates (p_world = p * scale
@@ -753,7 +898,11 @@ class ImageTerm:
         if self.cull_front is not None:
             cull[:] = np.asarray(self.cull_front, dtype=np.bool_).reshape(-1)
         M, eyes = self._frame(lo, scale)
-        return new_state(M, eyes, cull, self.reference, consts, texture, nv, m, len(uv))
+        entropy = None
+        if self.entropy_weight != 0.0:
+            entropy = (bool(self.entropy_background), self.weight != 0.0)
+        return new_state(M, eyes, cull, self.reference, consts, texture, nv, m, len(uv),
+                         entropy)
 
     def state(self, mesh, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):
         """The engine's image state for its arrays, with the images rendered."""
@@ -761,6 +910,8 @@ class ImageTerm:
 
         img, iws = self._new(mesh, uv, len(P), len(F), lo, scale)
         full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, float(BACKGROUND))
+        if self.entropy_weight != 0.0:
+            entropy_init(img[12], img[14])
         height, width = self.reference.shape[1:]
         tiles = build_tiles(img[6], falive, TILE, -(-width // TILE), -(-height // TILE))
         return img, tiles, iws
@@ -779,12 +930,26 @@ class ImageTerm:
         out["rasterizer_share"] = (counts["raster_cycles"] / counts["run_cycles"]
                                    if counts["run_cycles"] > 0 else None)
         Y, Y0 = img[4], img[3]
-        out["image_sse"] = float(np.sum((Y0 - Y) ** 2))
+        shaded = self.weight != 0.0 or self.entropy_weight == 0.0
+        if shaded:
+            out["image_sse"] = float(np.sum((Y0 - Y) ** 2))
+        entropy = self.entropy_weight != 0.0
+        if entropy:
+            CNT, SUM, TOT = img[14][:3]
+            out["view_entropy"] = [float(view_entropy(s, float(a))) for s, a in zip(SUM, TOT)]
         if verify:
             again, iws = self._new(mesh, uv, len(P), len(F), lo, scale)
             full_render(again, iws, P, F, FW, uv, falive, vhead, cnext, valive,
                         float(BACKGROUND))
-            out["image_mismatched_pixels"] = int(np.count_nonzero(again[4] != Y))
+            if shaded:
+                out["image_mismatched_pixels"] = int(np.count_nonzero(again[4] != Y))
             out["face_id_mismatched_pixels"] = int(np.count_nonzero(again[12] != img[12]))
             out["depth_mismatched_pixels"] = int(np.count_nonzero(again[13] != img[13]))
+            if entropy:  # the maintained counts and entropies against fresh ones
+                entropy_init(again[12], again[14])
+                fresh = np.array([view_entropy(s, float(a))
+                                  for s, a in zip(again[14][1], again[14][2])])
+                out["entropy_count_mismatches"] = int(np.count_nonzero(again[14][0] != CNT))
+                out["entropy_max_error"] = float(np.max(np.abs(
+                    fresh - np.asarray(out["view_entropy"]))))
         return out
