@@ -18,6 +18,7 @@ from bench.registry import suggest
 from bench.mesh import Mesh
 
 __all__ = ["ModelSpec", "BUNNY", "BUNNY_TEXTURED", "TORUS", "INTERIOR", "TORUS_PUZZLE",
+           "CRATE", "BARREL", "BUNNY_TEXTURED_815", "BUNNY_TEXTURED_4698", "TORUS_13810",
            "resolve_model", "pymeshlab_sample"]
 
 
@@ -91,6 +92,52 @@ INTERIOR = ModelSpec(
 TORUS_PUZZLE = ModelSpec(
     "torus-puzzle", "the swept torus at 57,660 faces with a jigsaw puzzle texture, lit "
     "(Williams et al. 2003, Plate 1)", "procedural (bench.puzzle, seed 2003)", _torus_puzzle)
+
+
+def _crate() -> Mesh:
+    from bench.gamemodels import make_crate
+
+    return make_crate()
+
+
+def _barrel() -> Mesh:
+    from bench.gamemodels import make_barrel
+
+    return make_barrel()
+
+
+def _predecimated(base: ModelSpec, faces: int) -> Callable[[], Mesh]:
+    """``base`` simplified to ``faces`` by our Garland-Heckbert 1998 engine (texture
+    quadrics, seams kept closed, every UV chart kept): a stand-in for the sizes of
+    González et al. 2008's Table 1, whose models are not public."""
+    def load() -> Mesh:
+        from methods.engine import Policy, simplify_mesh
+
+        return simplify_mesh(base.load(), faces, Policy(texture_weight=1.0)).mesh
+    return load
+
+
+CRATE = ModelSpec(
+    "crate", "subdivided box (12 x 12 quads a side) with per-face UVs: duplicated "
+    "vertices along every box edge, three at each corner (González et al. 2008)",
+    "procedural (bench.gamemodels, seed 2008)", _crate)
+BARREL = ModelSpec(
+    "barrel", "two materials in one atlas: a stave body and two metal lids whose rims "
+    "share positions, not vertices, with the body (sub-meshes meeting along a seam)",
+    "procedural (bench.gamemodels, seed 2008)", _barrel)
+BUNNY_TEXTURED_815 = ModelSpec(
+    "bunny-textured-815", "bunny-textured pre-decimated to 815 faces (Table 1 of "
+    "González et al. 2008: 815 -> 100)", "bunny-textured, quadric engine (texture "
+    "quadrics)", _predecimated(BUNNY_TEXTURED, 815), requires={"pymeshlab": "pymeshlab>=2023.12"})
+BUNNY_TEXTURED_4698 = ModelSpec(
+    "bunny-textured-4698", "bunny-textured pre-decimated to 4,698 faces (Table 1 of "
+    "González et al. 2008: 4,698 -> 500)", "bunny-textured, quadric engine (texture "
+    "quadrics)", _predecimated(BUNNY_TEXTURED, 4698),
+    requires={"pymeshlab": "pymeshlab>=2023.12"})
+TORUS_13810 = ModelSpec(
+    "torus-13810", "the textured torus pre-decimated to 13,810 faces (Table 1 of "
+    "González et al. 2008: 13,810 -> 1,000)", "torus, quadric engine (texture quadrics)",
+    _predecimated(TORUS, 13810))
 
 
 def _looks_like_path(word: str) -> bool:

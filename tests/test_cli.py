@@ -212,9 +212,14 @@ def test_list_all():
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     found = sections(proc.stdout)
-    assert list(found) == ["methods", "models", "metrics"]
+    assert list(found) == ["methods", "models", "metrics", "suites"]
+    suites = found.pop("suites")
     for kind, (count, table) in found.items():
         check_section(kind, count, table)
+    from bench.suites import SUITES
+
+    count, table = suites
+    assert count == len(SUITES) and set(table) - {"name"} == set(SUITES)
 
 
 def test_list_unknown_kind_is_a_usage_error():

@@ -302,3 +302,22 @@ def test_protocol_needs_one_mesh_per_view():
     mesh = make_torus(16, 8, texture_size=64)
     with pytest.raises(ValueError, match="one mesh per protocol view"):
         render_per_view([mesh] * 3, mesh, Protocol())
+
+
+@pytest.mark.slow
+def test_runner_images_each_view_with_its_own_cut(tmp_path, monkeypatch):
+    """End to end through the runner: a view-dependent method's record holds the
+    per-view refinement statistics and metrics of the per-view images."""
+    from bench.meshio import save_mesh
+    from bench.runner import Job, run_job
+    from metrics.protocol import Protocol
+
+    monkeypatch.setenv("BENCH_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "torus.obj"
+    save_mesh(make_torus(16, 8, texture_size=64), path)
+    job = Job(str(path), "perceptual-mt", 60, {}, Protocol(shading="gouraud", specular=True))
+    record = run_job(job, tmp_path)
+    assert record["status"] == "ok", record["error"]
+    assert len(record["stats"]["refine_ms"]) == 24
+    assert len(record["per_view"]["d_rms"]) == 24
+    assert record["metrics"]["faces"] <= 60
