@@ -50,6 +50,7 @@ import numpy as np
 from numba import njit
 
 from bench.mesh import Mesh
+from methods.engine import _uv_minimiser
 
 __all__ = ["MultiTriangulation", "Cut", "build_mt", "from_log"]
 
@@ -322,24 +323,6 @@ def _grow(a, n):
 
 
 @njit(cache=True)
-def _uv_minimiser(g, p, out):
-    """(u, v) minimising the 31-float wedge quadric g (A 5x5, b 5, c) at position p:
-    -A_uu^-1 (A_up p + b_u), as the engine does. False when A_uu is singular."""
-    a00, a01, a11 = g[3 * 5 + 3], g[3 * 5 + 4], g[4 * 5 + 4]
-    det = a00 * a11 - a01 * a01
-    if abs(det) <= 1e-12 * (abs(a00) + abs(a11)) ** 2 or det == 0.0:
-        return False
-    r0 = g[25 + 3]
-    r1 = g[25 + 4]
-    for k in range(3):
-        r0 += g[3 * 5 + k] * p[k]
-        r1 += g[4 * 5 + k] * p[k]
-    out[0] = -(a11 * r0 - a01 * r1) / det
-    out[1] = -(-a01 * r0 + a00 * r1) / det
-    return True
-
-
-@njit(cache=True)
 def _replay(Pw, Pn, F, FW, uv, has_uv, use_wq, WQ, wedge_vertex, wedge_pos, log_removed,
             log_kept, log_pos, log_faces, lo, scale):
     """Replay the collapse log; returns the MT arrays (see from_log)."""
@@ -448,7 +431,7 @@ def _replay(Pw, Pn, F, FW, uv, has_uv, use_wq, WQ, wedge_vertex, wedge_pos, log_
                     WQ[pairs_to[q], j] += WQ[pairs_from[q], j]
             for q in range(nt):
                 wd = targets[q]
-                if _uv_minimiser(WQ[wd], pn, best):
+                if _uv_minimiser(WQ[wd], pn, uv[wd], best):  # the engine's rule
                     if best[0] != uv[wd, 0] or best[1] != uv[wd, 1]:
                         fresh[q] = True
                     uv[wd, 0] = best[0]
