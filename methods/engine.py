@@ -793,7 +793,7 @@ def _view_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, weights, ict
 def _image_term(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, ictx):
     """Equation 8 of Lindstrom & Turk 2000 for collapsing u into v at p, with the
     texture coordinates the collapse would give (methods.image_cost.image_cost)."""
-    img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wfrom, wto, pts = ictx
+    img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wfrom, wto = ictx
     targets, new_uv = r5ws[6], r5ws[7]
     npairs = 0
     nt = 0
@@ -809,8 +809,8 @@ def _image_term(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, ictx):
                 for d in range(2):
                     new_uv[i, d] = (1.0 - t_edge) * uv[wfrom[i], d] + t_edge * uv[wto[i], d]
             nt = npairs
-    return image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, pts,
-                      wfrom, wto, npairs, targets, nt, new_uv, float(BACKGROUND))
+    return image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfrom,
+                      wto, npairs, targets, nt, new_uv, float(BACKGROUND))
 
 
 @njit(cache=True)
@@ -1142,7 +1142,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
          target,
          placement, weights, cos_limit, boundary_lock, seam_rule, boundary_rule, verify,
          max_collapses,
-         borders, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws, pts, uv_fix, kinds):
+         borders, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws, uv_fix, kinds):
     run_start = cycles()
     nv = P.shape[0]
     mark = np.zeros(nv, np.int64)
@@ -1165,7 +1165,7 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
     tws = (np.empty(8, np.int64), np.empty(8, np.int64), np.empty(64, np.int64), np.empty(31))
     r5ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 2)),
             np.empty((cap, 2)), np.empty((cap, 2)), np.empty(64, np.int64), np.empty((64, 2)))
-    ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to, pts)
+    ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to)
     rejects = np.zeros(_N_REJECTIONS, np.int64)
     log_cost = np.empty(max_collapses)
     log_removed = np.empty(max_collapses, np.int32)
@@ -1299,10 +1299,8 @@ def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv,
                 tiles = build_tiles(img[6], falive, TILE, -(-img[4].shape[2] // TILE),
                                     -(-img[4].shape[1] // TILE))
                 img[11][5] += 1
-                ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to,
-                        pts)
-            commit_render(changed, P, F, FW, uv, falive, img, tiles, iws, pts,
-                          float(BACKGROUND))
+                ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to)
+            commit_render(changed, P, F, FW, uv, falive, img, tiles, iws, float(BACKGROUND))
         n += 1
         log_start[n] = n_changed
         faces -= removed
@@ -1600,12 +1598,12 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
                         0.0 if image is None else getattr(image, "entropy_weight", 0.0)],
                        np.float64)
     if image is None:
-        img, tiles, iws, pts = dummy_state()
+        img, tiles, iws = dummy_state()
     else:
         if texture_quadrics:
             raise ValueError("the image term does not combine with texture quadrics")
-        img, tiles, iws, pts = image.state(mesh, P, F, FW, uv, falive, vhead, cnext, valive,
-                                           lo, scale)
+        img, tiles, iws = image.state(mesh, P, F, FW, uv, falive, vhead, cnext, valive, lo,
+                                      scale)
     limit = max(1, nv) if max_collapses is None else max(0, int(max_collapses))
     kinds = np.zeros(3, np.int64)
     out = _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex,
@@ -1613,12 +1611,12 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
                bool(policy.boundary_lock),
                bool(policy.seam_rule and mesh.n_vertices != w.n_vertices),
                bool(policy.boundary_rule), bool(verify),
-               limit, borders_arr, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws, pts,
+               limit, borders_arr, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws,
                bool(policy.uv_correction and has_uv), kinds)
     (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
      log_faces, log_start, log_changed, log_cost) = out
     image_stats = {} if image is None else image.statistics(
-        mesh, img, pts, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale)
+        mesh, img, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale)
     P = np.where(moved[:, None], P * scale + lo, P0)
 
     simplified = _extract(mesh, P, FW[falive], wedge_vertex, uv if has_uv else None)

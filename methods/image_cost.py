@@ -57,10 +57,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from llvmlite import ir
-from numba import get_thread_id, njit, prange, types
+from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
@@ -75,7 +74,7 @@ TILE = 8
 #: Counters kept in the state's ``stats`` array.
 STAT_NAMES = ("image_evaluations", "pixels_shaded", "face_rows", "raster_cycles",
               "run_cycles", "tile_rebuilds", "commits", "gather_cycles", "shade_cycles",
-              "setup_cycles", "render_wall_cycles")
+              "setup_cycles")
 _MAX_RING = 256  # vertices whose normal a collapse changes (more: 2-ring of a huge fan)
 
 
@@ -511,9 +510,10 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
         n = n2
     mid = cycles()
     eflags = ent[6]
-    dh = 0.0
     if eflags[0] != 0.0:  # viewpoint entropy: the count changes inside the rectangle
-        dh = abs(_entropy_change(h, rect, ids, IDS, ent, commit))
+        dh = _entropy_change(h, rect, ids, IDS, ent, commit)
+        if not commit:
+            eflags[3] += abs(dh)
     if eflags[2] == 0.0:  # face ids only, no luminance (entropy without equation 8)
         if commit:
             for r in range(r0, r1 + 1):
@@ -522,7 +522,7 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
                     DZ[h, r, c] = depth[r - r0, c - c0]
         stats[2] += n
         stats[3] += cycles() - start
-        return 0.0, dh
+        return 0.0
     tick[0] += 1
     filled = tick[0]  # rows whose shading columns are filled are marked with it
     cost = 0.0
@@ -560,31 +560,11 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     stats[2] += n
     stats[3] += end - start
     stats[8] += end - mid
-    return cost, dh
+    return cost
 
 
 @njit(cache=True)
-def _thread_state(img14, ent, iws, pts, tid):
-    """Thread ``tid``'s view of the state (``img14`` = the state without ``ent``; numba's
-    parallel loops take flat tuples only): its own scratch arrays and counters, the
-    shared images, geometry and marks."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ = img14
-    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
-     sp, box, aff, amark, gmark, rowof, rowmark) = iws
-    (mark_t, tick_t, cand_t, t_t, depth_t, ids_t, sp_t, box_t, rowof_t, rowmark_t, stats_t,
-     dcnt_t, emark_t, touched_t, etick_t) = pts
-    CNT, SUM, TOT, dcnt, emark, touched, flags, etick = ent
-    ent_k = (CNT, SUM, TOT, dcnt_t[tid], emark_t[tid], touched_t[tid], flags, etick_t[tid])
-    img_k = (M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats_t[tid], IDS, DZ,
-             ent_k)
-    iws_k = (mark_t[tid], tick_t[tid], cand_t[tid], t_t[tid], depth_t[tid], ids_t[tid], vslot,
-             ov_light, wslot, new_uv, ring, rects, buf, n3, sp_t[tid], box_t[tid], aff, amark,
-             gmark, rowof_t[tid], rowmark_t[tid])
-    return img_k, iws_k
-
-
-@njit(cache=True, parallel=True)
-def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, pts, wfrom, wto,
+def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfrom, wto,
                npairs, targets, nt, target_uv, background):
     """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
     squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
@@ -595,6 +575,7 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, pts
     n_views, height, width = Y.shape
     gouraud = consts[6] != 0.0
     stats[0] += 1
+    ent[6][3] = 0.0  # sum of |dH_v| of this evaluation, read by the engine
     setup_start = cycles()
     for i in range(nt):
         wslot[targets[i]] = i
@@ -628,17 +609,10 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, pts
         amark[aff[i]] = atick
     for i in range(na):
         gmark[aff[i]] = atick
+    cost = 0.0
     stats[9] += cycles() - setup_start
-    # The views are independent: in parallel, each thread with its own scratch; the
-    # per-view results are added up in view order, so the sums do not depend on threads.
-    vcost = np.zeros(n_views)
-    vdh = np.zeros(n_views)
-    img14 = img[:14]
-    wall = cycles()
-    for h in prange(n_views):
-        img_k, iws_k = _thread_state(img14, ent, iws, pts, get_thread_id())
-        t_k, sp_k, box_k = iws_k[3], iws_k[14], iws_k[15]
-        project(M, h, p, width, height, sp_k)
+    for h in range(n_views):
+        project(M, h, p, width, height, sp)
         rect = rects[h]
         rect[0], rect[1], rect[2], rect[3] = 0, -1, 0, -1
         for i in range(ns):
@@ -646,21 +620,13 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, pts
         for i in range(na):
             f = aff[i]
             if not (_has(F, f, u) and _has(F, f, v)):
-                fill_screen(t_k, 0, f, h, u, v, sp_k, S, F)
-                row_box(t_k, 0, width, height, box_k)
-                _grow(rect, box_k)
+                fill_screen(t, 0, f, h, u, v, sp, S, F)
+                row_box(t, 0, width, height, box)
+                _grow(rect, box)
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue
-        vcost[h], vdh[h] = _render_view(h, rect, na, u, v, sp_k, p, P, F, FW, uv, falive,
-                                        img_k, tiles, iws_k, wfrom, wto, npairs, atick, False,
-                                        background)
-    stats[10] += cycles() - wall
-    cost = 0.0
-    dh = 0.0
-    for h in range(n_views):
-        cost += vcost[h]
-        dh += vdh[h]
-    ent[6][3] = dh  # sum of |dH_v| of this evaluation, read by the engine
+        cost += _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws,
+                             wfrom, wto, npairs, atick, False, background)
     for i in range(nr):
         vslot[ring[i]] = -1
     for i in range(nt):
@@ -727,25 +693,21 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
     return ok, na
 
 
-@njit(cache=True, parallel=True)
-def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, pts, background):
+@njit(cache=True)
+def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
     """Re-render every view's rectangle noted by :func:`commit_geometry` into the
-    images (``na``: its count of changed faces), views in parallel."""
+    images (``na``: its count of changed faces)."""
     M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
     (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
      sp, box, aff, amark, gmark, rowof, rowmark) = iws
     atick = tick[0]  # commit_geometry marked the changed faces with it
     none_i = np.full(1, -1, np.int64)
-    img14 = img[:14]
-    wall = cycles()
-    for h in prange(Y.shape[0]):
+    for h in range(Y.shape[0]):
         rect = rects[h]
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue
-        img_k, iws_k = _thread_state(img14, ent, iws, pts, get_thread_id())
-        _render_view(h, rect, na, -1, -1, iws_k[14], P[0], P, F, FW, uv, falive, img_k, tiles,
-                     iws_k, none_i, none_i, 0, atick, True, background)
-    stats[10] += cycles() - wall
+        _render_view(h, rect, na, -1, -1, sp, P[0], P, F, FW, uv, falive, img, tiles, iws,
+                     none_i, none_i, 0, atick, True, background)
 
 
 # -- state --------------------------------------------------------------------------------
@@ -762,25 +724,6 @@ def _workspace(n_views, nv, m, n_wedges, height, width):
             np.empty(4), np.empty(4, np.int64), np.empty(8192, np.int64),
             np.zeros(m, np.int64), np.zeros(m, np.int64), np.zeros(m, np.int64),
             np.zeros(m, np.int64))
-
-
-#: Threads the views of an evaluation are spread over (numba's maximum).
-THREADS = numba.config.NUMBA_NUM_THREADS
-
-
-def thread_scratch(img, iws, threads=None):
-    """Per-thread scratch stacked along a first axis of ``threads``: mark, tick, cand,
-    t, depth, ids, sp, box, rowof, rowmark, stats and the entropy scratch (see
-    :func:`_thread_state`)."""
-    T = THREADS if threads is None else threads
-
-    def stack(a):
-        return np.zeros((T,) + a.shape, a.dtype)
-
-    ent = img[14]
-    picks = [iws[i] for i in (0, 1, 2, 3, 4, 5, 14, 15, 19, 20)] + [img[11]] + \
-        [ent[i] for i in (3, 4, 5, 7)]
-    return tuple(stack(a) for a in picks)
 
 
 def entropy_state(n_views, m, on=False, background=True, shade=True):
@@ -802,8 +745,7 @@ def dummy_state():
            np.zeros((1, 1, 1)), entropy_state(1, 1))
     tiles = (np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64), np.zeros(1, np.int32),
              np.zeros((1, 1, 4), np.int32))
-    iws = _workspace(1, 1, 1, 1, 1, 1)
-    return img, tiles, iws, thread_scratch(img, iws, 1)
+    return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
 
 
 def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges, entropy=None):
@@ -972,28 +914,21 @@ class ImageTerm:
             entropy_init(img[12], img[14])
         height, width = self.reference.shape[1:]
         tiles = build_tiles(img[6], falive, TILE, -(-width // TILE), -(-height // TILE))
-        return img, tiles, iws, thread_scratch(img, iws)
+        return img, tiles, iws
 
-    def statistics(self, mesh, img, pts, verify, P, F, FW, uv, falive, vhead, cnext, valive,
-                   lo, scale):
+    def statistics(self, mesh, img, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):
         """Counters of the run; with ``verify``, a from-scratch render of the final mesh
-        compared with the maintained images.
-
-        ``rasterizer_share`` is the share of the run's wall time spent rendering views
-        (set-up, scanning, shading, tile look-ups; the views run in parallel);
-        ``gather_share``, ``shade_share`` split the renderer's CPU time, summed over
-        threads; ``setup_share`` is the serial set-up's share of the run."""
+        compared with the maintained images."""
         from methods.raster import BACKGROUND
 
-        total = img[11] + pts[10].sum(axis=0)  # serial counters + every thread's
-        counts = dict(zip(STAT_NAMES, (int(x) for x in total)))
+        counts = dict(zip(STAT_NAMES, (int(x) for x in img[11])))
         out = {k: counts[k] for k in ("image_evaluations", "pixels_shaded", "face_rows",
                                       "tile_rebuilds")}
-        run, cpu = counts["run_cycles"], counts["raster_cycles"]
-        out["rasterizer_share"] = counts["render_wall_cycles"] / run if run > 0 else None
-        out["setup_share"] = counts["setup_cycles"] / run if run > 0 else None
-        for k in ("gather", "shade"):
-            out[f"{k}_share"] = counts[f"{k}_cycles"] / cpu if cpu > 0 else None
+        if counts["run_cycles"] > 0:  # where the time goes
+            for k in ("gather", "shade", "setup"):
+                out[f"{k}_share"] = counts[f"{k}_cycles"] / counts["run_cycles"]
+        out["rasterizer_share"] = (counts["raster_cycles"] / counts["run_cycles"]
+                                   if counts["run_cycles"] > 0 else None)
         Y, Y0 = img[4], img[3]
         shaded = self.weight != 0.0 or self.entropy_weight == 0.0
         if shaded:
