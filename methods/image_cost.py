@@ -16,20 +16,25 @@ mesh and everything needed to re-render a rectangle of them:
 * :func:`image_cost` renders each view's rectangle as it would look after a *simulated*
   collapse (the kept vertex at its new place, the removed faces gone, new texture
   coordinates and vertex normals) into scratch buffers and returns equation 8;
-  :func:`image_commit` does the same render for the collapse actually made and writes
-  it into ``Y``. Re-rendering the rectangle from every face that overlaps it is the
-  "un-rendering" of §4.2.3: surfaces hidden behind removed faces reappear.
+  :func:`commit_geometry` and :func:`commit_render` do the same for the collapse
+  actually made and write it into ``Y``.
+
+Only what can change is drawn (:func:`_render_view`): a pixel whose visible face is
+not one of the changed faces keeps that face, whose depth is kept too (``DZ``), so the
+changed faces are scanned over the rectangle against those depths, and every other
+face is scanned only over the pixels the changed faces used to show (the *holes*):
+that is the "un-rendering" of §4.2.3, surfaces hidden behind removed faces reappear.
 
 Rendering is :mod:`methods.raster`'s: each face to draw becomes a row of the per-face
 table and the same :func:`~methods.raster.scan_row` and
-:func:`~methods.raster.shade_region` do the pixels, in increasing face index (depth ties
-go to the lower index, as in a full render). Faces keep their indices for the life of
-the engine (a collapse only deletes faces and renames corners), so a region re-render
-sees the same faces in the same order as a from-scratch render of the current mesh, and
-every per-vertex quantity is computed by the same function in both cases (vertex normals
-summed over incident faces in increasing face index). The maintained images therefore
-equal a from-scratch render **bit for bit**; ``simplify_mesh(..., verify=True)`` checks
-it at the end of a run.
+:func:`~methods.raster.shade_pixel` do the pixels. A pixel goes to the face with the
+smaller (depth, face id), whatever order faces are scanned in, which is what a full
+render drawing faces in increasing index with ``GL_LESS`` gives. Faces keep their
+indices for the life of the engine (a collapse only deletes faces and renames
+corners), and every per-vertex quantity is computed by the same function in both
+cases (vertex normals summed over incident faces in increasing face index). The
+maintained images, face ids and depths therefore equal a from-scratch render **bit for
+bit**; ``simplify_mesh(..., verify=True)`` checks it at the end of a run.
 
 The rectangle of a view is the union of the old and the new pixel boxes of every face
 around the edge (the paper's ``[[e]] ∪ [[v]]``); with gouraud shading also the boxes of
