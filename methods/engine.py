@@ -571,20 +571,26 @@ def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
 
 
 @njit(cache=True)
+def corner_wedges(F, FW, f, a, b):
+    """The wedges of vertices ``a`` and ``b`` in face ``f`` (-1 when absent)."""
+    wa = -1
+    wb = -1
+    for j in range(3):
+        if F[f, j] == a:
+            wa = FW[f, j]
+        elif F[f, j] == b:
+            wb = FW[f, j]
+    return wa, wb
+
+
+@njit(cache=True)
 def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
     """Pairs (wedge of u -> wedge of v) across the faces of edge (u, v): each side of
     the edge merges its own two wedges. Returns the number of pairs."""
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     npairs = 0
     for i in range(min(k, efaces.shape[0])):
-        f = efaces[i]
-        wu = -1
-        wv = -1
-        for j in range(3):
-            if F[f, j] == u:
-                wu = FW[f, j]
-            elif F[f, j] == v:
-                wv = FW[f, j]
+        wu, wv = corner_wedges(F, FW, efaces[i], u, v)
         if wu != wv and npairs < wmap_from.shape[0]:
             wmap_from[npairs] = wu
             wmap_to[npairs] = wv
@@ -837,13 +843,7 @@ def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, in
     area = 0.0
     for i in range(min(k, efaces.shape[0])):
         f = efaces[i]
-        wa = -1
-        wb = -1
-        for j in range(3):
-            if F[f, j] == a:
-                wa = FW[f, j]
-            elif F[f, j] == b:
-                wb = FW[f, j]
+        wa, wb = corner_wedges(F, FW, f, a, b)
         if not crossing:
             _, hit = _walk(uv[wa, 0] * w, uv[wa, 1] * h, uv[wb, 0] * w, uv[wb, 1] * h,
                            borders, no_record)

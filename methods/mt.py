@@ -50,7 +50,7 @@ import numpy as np
 from numba import njit
 
 from bench.mesh import Mesh
-from methods.engine import _uv_minimiser
+from methods.engine import _uv_minimiser, corner_wedges
 
 __all__ = ["MultiTriangulation", "Cut", "build_mt", "from_log"]
 
@@ -385,13 +385,7 @@ def _replay(Pw, Pn, F, FW, uv, has_uv, use_wq, WQ, wedge_vertex, wedge_pos, log_
             r = log_faces[i, s]
             if r < 0:
                 continue
-            wu = -1
-            wv = -1
-            for k in range(3):
-                if F[r, k] == u:
-                    wu = FW[r, k]
-                elif F[r, k] == v:
-                    wv = FW[r, k]
+            wu, wv = corner_wedges(F, FW, r, u, v)
             if wu != wv:
                 pairs_from[npairs] = wu
                 pairs_to[npairs] = wv

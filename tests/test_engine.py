@@ -315,14 +315,23 @@ def test_reduced_wedge_quadric_is_the_minimum_over_uv():
         assert y @ H @ y >= x @ H @ x - 1e-12
 
 
-def test_texture_quadrics_keep_an_affine_texture_map_exact():
-    """A flat, jittered grid whose UVs are affine in position has zero 5-D quadric error
-    at the true UVs, so the UVs chosen by the wedge quadrics must be exact."""
+def affine(p):
+    """An affine texture map of positions (the planar grids' UVs)."""
+    return np.column_stack([0.2 + 0.5 * p[:, 0] + 0.1 * p[:, 1],
+                            0.1 - 0.2 * p[:, 0] + 0.6 * p[:, 1]])
+
+
+def affine_textured_grid():
+    """A flat 8x8 grid with jittered inner vertices and UVs affine in position."""
     positions, faces = grid(8)
     inner = np.all((positions[:, :2] > 0) & (positions[:, :2] < 1), axis=1)
     positions[inner, :2] += np.random.default_rng(0).uniform(-0.04, 0.04, (inner.sum(), 2))
-    affine = lambda p: np.column_stack([0.2 + 0.5 * p[:, 0] + 0.1 * p[:, 1],
-                                        0.1 - 0.2 * p[:, 0] + 0.6 * p[:, 1]])
-    mesh = Mesh(positions, faces, uv=affine(positions))
+    return Mesh(positions, faces, uv=affine(positions)), affine
+
+
+def test_texture_quadrics_keep_an_affine_texture_map_exact():
+    """A flat, jittered grid whose UVs are affine in position has zero 5-D quadric error
+    at the true UVs, so the UVs chosen by the wedge quadrics must be exact."""
+    mesh, affine = affine_textured_grid()
     out = simplify_mesh(mesh, 40, Policy(texture_weight=1.0)).mesh
     np.testing.assert_allclose(out.uv, affine(out.positions), atol=1e-9)

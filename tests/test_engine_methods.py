@@ -49,17 +49,11 @@ def test_memoryless_r5_keeps_an_affine_texture_map_exact(target):
     0.05 in UV), which is what makes this test discriminate."""
     import dataclasses
 
-    from bench.mesh import Mesh
     from methods.engine import simplify_mesh
     from methods.memoryless import Memoryless
-    from test_engine import grid
+    from test_engine import affine_textured_grid
 
-    positions, faces = grid(8)
-    inner = np.all((positions[:, :2] > 0) & (positions[:, :2] < 1), axis=1)
-    positions[inner, :2] += np.random.default_rng(0).uniform(-0.04, 0.04, (inner.sum(), 2))
-    affine = lambda p: np.column_stack([0.2 + 0.5 * p[:, 0] + 0.1 * p[:, 1],
-                                        0.1 - 0.2 * p[:, 0] + 0.6 * p[:, 1]])
-    mesh = Mesh(positions, faces, uv=affine(positions))
+    mesh, affine = affine_textured_grid()
     policy = Memoryless().policy()
     out = simplify_mesh(mesh, target, policy).mesh
     np.testing.assert_allclose(out.uv, affine(out.positions), atol=1e-12)
