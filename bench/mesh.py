@@ -91,7 +91,7 @@ class Mesh:
 
     Notes
     -----
-    Construct meshes from untrusted data with :func:`bench.validate.build_mesh`, which
+    Construct meshes from untrusted data with :func:`bench.io.validate.build_mesh`, which
     checks and cleans the arrays; this constructor only normalises dtypes and shapes.
     """
 

@@ -20,8 +20,8 @@ environment (worker processes inherit it)::
 from __future__ import annotations
 
 import difflib
-import os
 import importlib.util
+import os
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
 

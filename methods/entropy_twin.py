@@ -6,14 +6,14 @@ The pipeline of Algorithm 1:
 
 1. images: face-id buffers of the mesh in ``views`` views (the 20 vertices of a regular
    dodecahedron around the original's bounding sphere, ``resolution``² pixels), drawn
-   by our numba scan converter (:mod:`methods.raster`); per view and face the number
+   by our numba scan converter (:mod:`methods.imaging.raster`); per view and face the number
    of pixels it covers, its *projected area* a_i;
 2. cost of a half-edge collapse (both directions simulated, the cheaper kept):
    ``sum_v |ΔH_v|``, the change of the viewpoint entropy
    ``H_v = -sum_i (a_i / a_t) log(a_i / a_t)`` in every view, plus on textured meshes
    the Canny texture-border term of González et al. 2007 (``canny_weight``, as
    ``canny-texture``). A candidate is costed by re-rendering only its screen
-   rectangles (:mod:`methods.image_cost`, in "face ids only" mode): only the faces
+   rectangles (:mod:`methods.imaging.region`, in "face ids only" mode): only the faces
    whose pixel count changes there enter the entropy sums, so no view is re-rendered
    whole, and after each collapse the counts are updated from the changed pixels;
 3. Algorithm 2 (real, twin and fake edges) is what the shared engine's welded topology
@@ -83,7 +83,8 @@ import numpy as np
 from bench.errors import ParamError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
-from methods.engine import Policy, simplify_mesh
+from methods.engine.policy import Policy
+from methods.engine.simplify import simplify_mesh
 
 __all__ = ["EntropyTwin", "viewpoint_entropy", "entropy_term", "rebuild_normals",
            "NORMALS_ANGLE"]
@@ -100,7 +101,7 @@ def viewpoint_entropy(ids: np.ndarray, background: bool = True) -> np.ndarray:
     Parameters
     ----------
     ids : ndarray of shape (V, H, W) int
-        Face seen at each pixel, -1 for the background (:func:`methods.raster.face_id_buffers`).
+        Face seen at each pixel, -1 for the background (:func:`methods.imaging.raster.face_id_buffers`).
     background : bool
         Count the background pixels as one more "face" (Vázquez et al.).
 
@@ -129,10 +130,10 @@ def viewpoint_entropy(ids: np.ndarray, background: bool = True) -> np.ndarray:
 def entropy_term(mesh: Mesh, views: int = 20, resolution: int = 256,
                  background: bool = True, weight: float = 1.0):
     """The engine's viewpoint-entropy term for ``mesh`` (the original model): an
-    :class:`methods.image_cost.ImageTerm` that renders face ids only (equation 8 off)
+    :class:`methods.imaging.region.ImageTerm` that renders face ids only (equation 8 off)
     and costs a collapse by ``weight`` × sum over views of |ΔH_v|."""
-    from methods.image_cost import ImageTerm
-    from methods.image_driven import view_directions
+    from methods.imaging.state import ImageTerm
+    from methods.imaging.views import view_directions
     from metrics.views import cameras_for
 
     cameras = cameras_for(mesh, view_directions(views))
@@ -279,7 +280,7 @@ class EntropyTwin(Method):
         borders = None
         stats = {"canny_term": canny}
         if canny:
-            from methods.canny import texture_borders
+            from methods.engine.canny import texture_borders
 
             borders = texture_borders(mesh.texture)
             stats["border_pixels"] = int(borders.sum())

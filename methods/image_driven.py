@@ -11,13 +11,13 @@ the affected triangles (equation 8). The pipeline of §4 and §5:
    dodecahedron around the original's bounding sphere, 256² by default), with the
    chosen shading and, for ``interior_views`` of them, front faces culled (§5.2);
 3. simplify on the shared engine with memoryless vertex placement (§4.1), R^5 texture
-   coordinates (§4.1.1), the image cost (:mod:`methods.image_cost`, which keeps the
+   coordinates (§4.1.1), the image cost (:mod:`methods.imaging.region`, which keeps the
    images of the current model and re-renders only the affected rectangles, §4.2.3)
    and lazy evaluation (§4.2.2).
 
 Choices where the paper is open, and why:
 
-* the renderer is our numba scan converter (:mod:`methods.raster`): no anti-aliasing,
+* the renderer is our numba scan converter (:mod:`methods.imaging.raster`): no anti-aliasing,
   as the paper's hardware images were not anti-aliased, and a different renderer from
   the evaluation's, as in the paper;
 * ``shading`` defaults to the evaluation protocol's shading when run by ``bench run``
@@ -43,43 +43,20 @@ Choices where the paper is open, and why:
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
-
-import numpy as np
 
 from bench.errors import ParamError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
-from methods.engine import Policy, simplify_mesh
+from methods.engine.policy import Policy
+from methods.engine.simplify import simplify_mesh
+from methods.imaging.views import interior_mask, view_directions
 
-__all__ = ["ImageDriven", "view_directions", "interior_mask"]
+__all__ = ["ImageDriven"]
 
 #: Pre-simplification target as a multiple of the final one (Table 1: 14,535 -> 1,333).
 PRESIMPLIFY_RATIO = 10
-
-
-def view_directions(count: int) -> np.ndarray:
-    """Unit view directions: the 20 dodecahedron vertices for ``count == 20`` (§4.2),
-    else a spherical Fibonacci set of ``count`` points."""
-    from metrics.views import dodecahedron_directions
-
-    if count == 20:
-        return np.asarray(dodecahedron_directions(), dtype=np.float64)
-    i = np.arange(count) + 0.5
-    z = 1.0 - 2.0 * i / count
-    phi = math.pi * (1.0 + math.sqrt(5.0)) * i
-    r = np.sqrt(1.0 - z * z)
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-
-
-def interior_mask(count: int, interior: int) -> np.ndarray:
-    """(count,) bool: which views cull front faces, spread evenly over the set."""
-    mask = np.zeros(count, bool)
-    if interior > 0:
-        mask[np.floor(np.arange(interior) * count / interior).astype(int)] = True
-    return mask
 
 
 class ImageDriven(Method):
@@ -122,9 +99,9 @@ class ImageDriven(Method):
                              "the target)")
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
+        from methods.imaging.raster import rasterize_luminance
+        from methods.imaging.state import ImageTerm
         from metrics.views import cameras_for
-        from methods.image_cost import ImageTerm
-        from methods.raster import rasterize_luminance
 
         self._check()
         p = self.params

@@ -22,7 +22,8 @@ from typing import Literal
 
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
-from methods.engine import Policy, simplify_mesh
+from methods.engine.policy import Policy
+from methods.engine.simplify import simplify_mesh
 
 __all__ = ["Quadric"]
 

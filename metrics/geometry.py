@@ -236,13 +236,13 @@ def _face_samples(positions: np.ndarray, faces: np.ndarray, areas: np.ndarray, c
 def _check_mesh(mesh, what: str) -> None:
     if not isinstance(mesh, Mesh):
         raise ValueError(f"{what} must be a bench.mesh.Mesh, got {type(mesh).__name__}; "
-                         "build one with bench.validate.build_mesh")
+                         "build one with bench.io.validate.build_mesh")
     if mesh.n_faces == 0:
         raise ValueError(f"{what} has no faces; a surface distance needs at least one "
                          "triangle")
     if not np.isfinite(mesh.positions).all():
         raise ValueError(f"{what} has NaN or infinite vertex positions; clean it with "
-                         "bench.validate.build_mesh")
+                         "bench.io.validate.build_mesh")
 
 
 def _check_samples(samples) -> int:

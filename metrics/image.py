@@ -30,12 +30,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from bench.metric import Metric
+from metrics.shading import LUMA_WEIGHTS, luminance  # re-exported: callers of the metrics use them
 
 __all__ = ["luminance", "d_rms", "ssim_mean", "flip_mean", "FLIP_VIEWS", "FLIP_PPD",
            "LUMA_WEIGHTS", "D_RMS", "SSIM", "FLIP"]
-
-#: Weights of R, G and B in the luminance Y (ITU-R BT.601, as in L&T 2000 §3.1).
-LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114])
 
 #: Pixels per degree of visual angle assumed by FLIP: its default, a 0.7 m viewing
 #: distance from a 0.7 m wide 3840-pixel monitor. Passed explicitly so an upgrade of
@@ -97,33 +95,6 @@ def _check_pair(original_images, simplified_images) -> tuple[np.ndarray, np.ndar
 
 
 # -- the metrics -------------------------------------------------------------------------
-
-def luminance(images: np.ndarray) -> np.ndarray:
-    """Luminance Y = 0.299 R + 0.587 G + 0.114 B of RGB pixels, on 0..255.
-
-    Parameters
-    ----------
-    images : ndarray of shape (..., 3) uint8
-        RGB pixels.
-
-    Returns
-    -------
-    ndarray of shape (...) float64
-
-    References
-    ----------
-    .. [1] Lindstrom, P. & Turk, G. Image-driven simplification. ACM TOG 19(3), 2000,
-       §3.1 (the luminance weights of ITU-R BT.601).
-    """
-    images = np.asarray(images)
-    if images.ndim == 0 or images.shape[-1] != 3:
-        raise ValueError(f"images must have RGB in the last axis, shape (..., 3), got "
-                         f"{images.shape}; drop an alpha channel with images[..., :3]")
-    if images.dtype != np.uint8:
-        raise ValueError(f"images must be uint8 (0..255), got {images.dtype}; convert float "
-                         "images in 0..1 with (255 * x).round().astype(np.uint8)")
-    return images @ LUMA_WEIGHTS
-
 
 def d_rms(original_images: np.ndarray, simplified_images: np.ndarray
           ) -> tuple[float, np.ndarray]:

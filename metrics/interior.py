@@ -2,7 +2,7 @@
 (Lindstrom & Turk 2000, §5.2, Plates 2–3).
 
 A model opts in by describing its exterior in its metadata (as the built-in ``interior``
-model, :mod:`bench.interior`, does)::
+model, :mod:`bench.models.interior`, does)::
 
     mesh.metadata["exterior_sphere"] = {"centre": [x, y, z], "radius": r}
 

@@ -72,7 +72,13 @@ import pyrender as _pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
 from pyrender.shader_program import ShaderProgram, ShaderProgramCache  # noqa: E402
 
-from metrics.image import luminance  # noqa: E402,F401  (re-exported for callers of render)
+from metrics.shading import (  # noqa: E402,F401
+    BACKGROUND,
+    DEFAULT_CONSTANTS,
+    SHADINGS,
+    ShadingConstants,  # (re-exported for callers)
+    luminance,
+)
 
 __all__ = [
     "BACKGROUND",
@@ -84,48 +90,8 @@ __all__ = [
     "render",
 ]
 
-#: Background colour: 50 % gray as an 8-bit value (§3.2), exact after the MSAA resolve.
-BACKGROUND = 128
-#: Shading modes: per-face normals, or lighting per vertex interpolated (Gouraud).
-SHADINGS = ("flat", "gouraud")
 #: Samples per pixel of pyrender's offscreen framebuffer (hard-coded in pyrender).
 PYRENDER_MSAA_SAMPLES = 4
-#: Luminance weights on 0..255 RGB (ITU-R BT.601, as L&T 2000 use for equation 2).
-
-
-@dataclass(frozen=True)
-class ShadingConstants:
-    """Material and light constants of the classic shading model.
-
-    The defaults sum ambient + diffuse to 1, so a white surface facing the headlight is
-    exactly white and one seen edge-on keeps 10 % (silhouettes stay dark but distinct
-    from black holes); ``specular`` adds a highlight that may clip at white.
-
-    Parameters
-    ----------
-    ambient : float
-        Light reaching every surface regardless of orientation.
-    diffuse : float
-        Lambert weight of max(0, n·l).
-    albedo : float
-        Gray reflectance of untextured meshes (textured meshes use the texture colour).
-    specular : float
-        Blinn–Phong weight ks, used when ``render(..., specular=True)``.
-    shininess : float
-        Blinn–Phong exponent.
-    mipmaps : bool
-        Trilinear (mipmapped) texture minification; False gives plain bilinear.
-    """
-
-    ambient: float = 0.1
-    diffuse: float = 0.9
-    albedo: float = 1.0
-    specular: float = 0.3
-    shininess: float = 32.0
-    mipmaps: bool = True
-
-
-DEFAULT_CONSTANTS = ShadingConstants()
 
 
 # -- GLSL -------------------------------------------------------------------------------

@@ -353,5 +353,5 @@ def _validate_points(points) -> np.ndarray:
         raise ValueError("points is empty; a bounding sphere needs at least one point")
     if not np.all(np.isfinite(p)):
         raise ValueError("points contain NaN or infinity; clean the mesh first "
-                         "(bench.validate.build_mesh)")
+                         "(bench.io.validate.build_mesh)")
     return p

@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-
 # -- hand-built meshes ------------------------------------------------------------------
 
 #: Two triangles sharing the edge (0,0,0)-(1,1,0) seen from +z (counter-clockwise)::
@@ -52,6 +51,6 @@ def bunny_textured():
 @pytest.fixture(scope="session")
 def small_torus():
     """make_torus(64, 32): 4096 faces, closed, with UV seams and a texture."""
-    from bench.torus import make_torus
+    from bench.models.torus import make_torus
 
     return make_torus(64, 32)

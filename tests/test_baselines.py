@@ -14,8 +14,8 @@ import pytest
 from bench.errors import InputError, MethodError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult, run_method, target_tolerance
-from methods.baselines import FastSimplification, QSlim, QSlimTexture, split_wedges
 from conftest import TET_FACES, TET_POSITIONS
+from methods.baselines import FastSimplification, QSlim, QSlimTexture, split_wedges
 
 METHODS = {"qslim": QSlim, "qslim-texture": QSlimTexture,
            "fast-simplification": FastSimplification}

@@ -1,4 +1,4 @@
-"""Tests of methods.canny: Canny texture borders, UV-segment traversal, edge penalties.
+"""Tests of methods.engine.canny: Canny texture borders, UV-segment traversal, edge penalties.
 
 The traversal kernel is checked against two slow pure-Python oracles: an exact one that
 cuts the segment at every pixel edge it crosses and takes the pixel of each piece's
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from bench.mesh import Mesh
-from methods import canny
-from methods.canny import (
+from methods.engine import canny
+from methods.engine.canny import (
     border_image_with_edges,
     edge_penalties,
     segment_crosses_border,

@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from bench.meshio import load_mesh
+from bench.io.meshio import load_mesh
 from bench.method import target_tolerance
 from conftest import write
 
@@ -216,7 +216,7 @@ def test_list_all():
     suites = found.pop("suites")
     for kind, (count, table) in found.items():
         check_section(kind, count, table)
-    from bench.suites import SUITES
+    from bench.harness.suites import SUITES
 
     count, table = suites
     assert count == len(SUITES) and set(table) - {"name"} == set(SUITES)

@@ -10,9 +10,16 @@ import numpy as np
 import pytest
 
 from bench.mesh import Mesh
-from methods.engine import (Policy, _boundary_corners, _corner_lists, _optimal_point,
-                            face_quadrics,
-                            initial_quadrics, quadric_error, simplify_mesh)
+from methods.engine.policy import Policy
+from methods.engine.quadrics import (
+    _boundary_corners,
+    _optimal_point,
+    face_quadrics,
+    initial_quadrics,
+    quadric_error,
+)
+from methods.engine.simplify import simplify_mesh
+from methods.engine.topology import _corner_lists
 
 
 def grid(n: int, z=lambda x, y: 0.0 * x):
@@ -276,7 +283,7 @@ def test_corner_lists_link_every_corner_once():
 # -- Garland-Heckbert 1998 wedge quadrics --------------------------------------------------
 
 def test_wedge_quadric_is_area_times_squared_distance_to_the_lifted_plane():
-    from methods.engine import wedge_quadrics
+    from methods.engine.quadrics import wedge_quadrics
 
     rng = np.random.default_rng(11)
     P = rng.normal(size=(3, 3))
@@ -297,7 +304,7 @@ def test_wedge_quadric_is_area_times_squared_distance_to_the_lifted_plane():
 
 
 def test_reduced_wedge_quadric_is_the_minimum_over_uv():
-    from methods.engine import _add_reduced, _uv_minimiser
+    from methods.engine.quadrics import _add_reduced, _uv_minimiser
 
     rng = np.random.default_rng(12)
     M = rng.normal(size=(6, 6))

@@ -49,9 +49,10 @@ def test_memoryless_r5_keeps_an_affine_texture_map_exact(target):
     0.05 in UV), which is what makes this test discriminate."""
     import dataclasses
 
-    from methods.engine import simplify_mesh
-    from methods.memoryless import Memoryless
     from test_engine import affine_textured_grid
+
+    from methods.engine.simplify import simplify_mesh
+    from methods.memoryless import Memoryless
 
     mesh, affine = affine_textured_grid()
     policy = Memoryless().policy()

@@ -6,7 +6,7 @@ Each against an independent computation or a count made by hand:
   by the NumPy oracle and by the numba kernels of the engine's state;
 * the incrementally kept pixel counts and entropies equal those of a from-scratch
   render after K collapses, and the NumPy entropy of a fresh
-  :func:`methods.raster.face_id_buffers` render of the extracted mesh;
+  :func:`methods.imaging.raster.face_id_buffers` render of the extracted mesh;
 * the cost of a collapse is the brute-force sum over views of |H_v after - H_v before|;
 * no seam opens on the crate, the two-material barrel and the textured bunny;
 * the α, β texture-coordinate correction reproduces an affine texture map exactly.
@@ -21,12 +21,15 @@ import pytest
 import trimesh
 
 from bench.errors import ParamError
-from bench.gamemodels import make_barrel, make_crate
 from bench.mesh import Mesh
-from methods.engine import Policy, barycentric_uv, simplify_mesh
+from bench.models.gamemodels import make_barrel, make_crate
+from methods.engine.policy import Policy
+from methods.engine.simplify import simplify_mesh
+from methods.engine.wedges import barycentric_uv
 from methods.entropy_twin import EntropyTwin, entropy_term, rebuild_normals, viewpoint_entropy
-from methods.image_cost import entropy_init, entropy_state, view_entropy
-from methods.raster import face_id_buffers
+from methods.imaging.entropy import entropy_init, view_entropy
+from methods.imaging.raster import face_id_buffers
+from methods.imaging.state import entropy_state
 from metrics.topology import seam_cracks
 
 RES = 48

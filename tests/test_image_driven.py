@@ -1,4 +1,4 @@
-"""Tests for image-driven simplification (methods.image_cost, methods.image_driven).
+"""Tests for image-driven simplification (methods.imaging.region, methods.image_driven).
 
 The invariants of Lindstrom & Turk 2000 §4.2, each against an independent computation:
 
@@ -7,7 +7,7 @@ The invariants of Lindstrom & Turk 2000 §4.2, each against an independent compu
 * the cost of a collapse (equation 8 over the affected rectangles) equals the
   brute-force difference of the summed squared error over whole images before and
   after the collapse;
-* the engine's images agree with :func:`methods.raster.rasterize_luminance` of the
+* the engine's images agree with :func:`methods.imaging.raster.rasterize_luminance` of the
   extracted mesh (world coordinates, a different set-up path).
 """
 
@@ -19,11 +19,13 @@ import trimesh
 
 from bench.errors import ParamError
 from bench.mesh import Mesh
-from methods.engine import Policy, simplify_mesh
-from methods.image_cost import ImageTerm
-from methods.image_driven import ImageDriven, interior_mask, view_directions
-from methods.raster import face_id_buffers, rasterize_luminance
-from metrics.views import cameras_for, dodecahedron_directions, silhouette_cameras
+from methods.engine.policy import Policy
+from methods.engine.simplify import simplify_mesh
+from methods.image_driven import ImageDriven
+from methods.imaging.raster import face_id_buffers, rasterize_luminance
+from methods.imaging.state import ImageTerm
+from methods.imaging.views import interior_mask, view_directions
+from metrics.views import dodecahedron_directions, silhouette_cameras
 
 RES = 48
 PLACEMENT = Policy(placement="memoryless", quadric_weight=0.0, memoryless_weight=0.0,

@@ -13,10 +13,17 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from bench.interior import (EXTERIOR_RADIUS, INNER_AMPLITUDE, INNER_RADIUS, OPENINGS,
-                            bump_height, geodesic_sphere, make_interior)
 from bench.mesh import Mesh
 from bench.models import INTERIOR, resolve_model
+from bench.models.interior import (
+    EXTERIOR_RADIUS,
+    INNER_AMPLITUDE,
+    INNER_RADIUS,
+    OPENINGS,
+    bump_height,
+    geodesic_sphere,
+    make_interior,
+)
 from metrics.interior import EXTERIOR_SHARE, exterior_share, exterior_sphere
 from metrics.protocol import model_metrics
 

@@ -9,7 +9,7 @@ import pytest
 
 from bench.errors import UnknownNameError
 from bench.models import BUNNY, BUNNY_TEXTURED, TORUS, resolve_model
-from bench.torus import make_torus, torus_texture
+from bench.models.torus import make_torus, torus_texture
 from conftest import write
 
 

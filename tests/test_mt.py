@@ -1,12 +1,13 @@
-"""The Multi-Triangulation built from the engine's collapse log (methods.mt)."""
+"""The Multi-Triangulation built from the engine's collapse log (methods.mt.dag)."""
 
 import numpy as np
 import pytest
 
 from bench.mesh import Mesh
-from bench.torus import make_torus
-from methods.engine import Policy, simplify_mesh
-from methods.mt import Cut, build_mt, from_log
+from bench.models.torus import make_torus
+from methods.engine.policy import Policy
+from methods.engine.simplify import simplify_mesh
+from methods.mt.dag import Cut, build_mt, from_log
 
 # A fan of 8 triangles around vertex 4 (a flat square, y up):
 #

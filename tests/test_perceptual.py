@@ -8,13 +8,14 @@ import pytest
 from bench.errors import ParamError
 from bench.mesh import Mesh
 from bench.method import parse_params
-from bench.torus import make_torus
-from methods.csf import PEAK_FREQUENCY, ContrastSensitivity, csf
-from methods.mt import build_mt
-from methods.mt_preprocess import luminance_pyramid, preprocess, texel_luminance_ranges
-from methods.perceptual_mt import PerceptualMT, Refiner, node_errors, refine
+from bench.models.torus import make_torus
+from methods.mt.bounds import luminance_pyramid, preprocess, texel_luminance_ranges
+from methods.mt.csf import PEAK_FREQUENCY, ContrastSensitivity, csf
+from methods.mt.dag import build_mt
+from methods.mt.errors import node_errors
+from methods.mt.refine import Refiner, refine
+from methods.perceptual_mt import PerceptualMT
 from metrics.views import Camera, protocol_cameras
-
 
 # -- CSF (§3) ---------------------------------------------------------------------------------
 
@@ -308,8 +309,8 @@ def test_protocol_needs_one_mesh_per_view():
 def test_runner_images_each_view_with_its_own_cut(tmp_path, monkeypatch):
     """End to end through the runner: a view-dependent method's record holds the
     per-view refinement statistics and metrics of the per-view images."""
-    from bench.meshio import save_mesh
-    from bench.runner import Job, run_job
+    from bench.harness.runner import Job, run_job
+    from bench.io.meshio import save_mesh
     from metrics.protocol import Protocol
 
     monkeypatch.setenv("BENCH_CACHE", str(tmp_path / "cache"))

@@ -1,4 +1,4 @@
-"""Tests for the CPU scan converter (methods.raster).
+"""Tests for the CPU scan converter (methods.imaging.raster).
 
 The face-ID buffers are checked against a slow per-pixel NumPy reference on tiny scenes,
 coverage against an analytic sphere, and the shaded luminance against the evaluation
@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 from bench.mesh import Mesh
-from methods.raster import face_id_buffers, rasterize_luminance
+from methods.imaging.raster import face_id_buffers, rasterize_luminance
 from metrics.views import Camera, cameras_for, dodecahedron_directions, protocol_cameras
 
 SIZE = 32

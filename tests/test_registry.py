@@ -10,8 +10,14 @@ from typing import Literal
 
 import pytest
 
-from bench.errors import (BenchError, InputError, ParamError, RegistryError, UnavailableError,
-                          UnknownNameError)
+from bench.errors import (
+    BenchError,
+    InputError,
+    ParamError,
+    RegistryError,
+    UnavailableError,
+    UnknownNameError,
+)
 from bench.method import parse_params, resolve_target, target_tolerance
 from bench.registry import Registry, registry, suggest
 

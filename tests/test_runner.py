@@ -19,9 +19,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.meshio import save_mesh
+from bench.harness.results import CSV_COLUMNS
+from bench.io.meshio import save_mesh
 from bench.mesh import Mesh
-from bench.results import CSV_COLUMNS
 
 pytestmark = pytest.mark.slow
 

@@ -9,15 +9,13 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-import pandas as pd
 import pytest
 
-from bench.check import compare, make_baseline
 from bench.cli import build_parser
-from bench.results import CSV_COLUMNS, records_table, shading_label
-from bench.runner import plan
-from bench.suites import SUITES, Suite, evaluation_protocols, get_suite
+from bench.harness.check import compare, make_baseline
+from bench.harness.results import CSV_COLUMNS, records_table, shading_label
+from bench.harness.runner import plan
+from bench.harness.suites import SUITES, Suite, evaluation_protocols, get_suite
 from metrics.protocol import Protocol
 
 FLAT, GOURAUD_SPEC = Protocol("flat"), Protocol("gouraud", specular=True)
@@ -118,9 +116,9 @@ def test_lt2000_suites_name_their_experiments():
 @pytest.mark.parametrize("name", sorted(SUITES))
 def test_suite_variants_are_valid_method_parameters(name):
     """What ``bench run --suite`` checks before any work starts, for every suite."""
+    from bench.harness.runner import _fmt
     from bench.method import parse_params
     from bench.registry import registry
-    from bench.runner import _fmt
 
     for method, params in SUITES[name].variants or ():
         cls = registry("method").load(method)
@@ -144,7 +142,7 @@ def test_lt2000_shading_plans_each_variant_under_both_shadings():
 def test_bench_run_plans_a_suite_under_each_protocol(monkeypatch, tmp_path):
     """``bench run --suite`` hands the runner one job per protocol (execute replaced)."""
     import bench.commands.run as run_command
-    from bench.meshio import save_mesh
+    from bench.io.meshio import save_mesh
     from bench.mesh import Mesh
     from conftest import TET_FACES, TET_POSITIONS
 
@@ -225,7 +223,7 @@ def test_undefined_exterior_share_is_never_a_regression():
 
 
 def test_report_shows_each_evaluation_shading_and_the_exterior_share(tmp_path):
-    from bench.report import write_report
+    from bench.harness.report import write_report
 
     records = [_record("q", FLAT, 5.0), _record("q", GOURAUD_SPEC, 7.0),
                _record("q", FLAT, 4.0, model="interior", exterior_share=0.95)]

@@ -6,8 +6,8 @@ import json
 import sys
 from pathlib import Path
 
-from bench.check import make_baseline
-from bench.results import load_records
+from bench.harness.check import make_baseline
+from bench.harness.results import load_records
 
 
 def add_parser(sub, name: str) -> None:

@@ -7,8 +7,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from bench.check import FAILING_MARKS, compare, load_baseline, make_baseline
-from bench.results import load_records
+from bench.harness.check import FAILING_MARKS, compare, load_baseline, make_baseline
+from bench.harness.results import load_records
 
 
 def add_parser(sub, name: str) -> None:

@@ -33,7 +33,7 @@ def run(args) -> int:
 
 
 def _suite_rows() -> list[dict]:
-    from bench.suites import SUITES
+    from bench.harness.suites import SUITES
 
     return [{"name": s.name, "models": ",".join(s.models), "detail": s.description}
             for s in SUITES.values()]

@@ -9,11 +9,11 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
+from bench.harness.runner import execute, plan
+from bench.harness.suites import evaluation_protocols, get_suite
 from bench.method import parse_params, resolve_target
 from bench.models import resolve_model
 from bench.registry import registry
-from bench.runner import execute, plan
-from bench.suites import evaluation_protocols, get_suite
 
 DEFAULT_RATIOS = (0.02, 0.01)
 
@@ -113,7 +113,7 @@ def run(args) -> int:
 
 def finish(out: Path, build_report: bool = True) -> int:
     """Write results.csv (and the report) from every record in ``out``; print a summary."""
-    from bench.results import load_records, records_table, write_table
+    from bench.harness.results import load_records, records_table, write_table
 
     records = load_records(out)
     csv = write_table(out, records)
@@ -128,7 +128,7 @@ def finish(out: Path, build_report: bool = True) -> int:
     failed = table[table.status == "failed"]
     print(f"bench: wrote {csv}", file=sys.stderr)
     if build_report:
-        from bench.report import write_report
+        from bench.harness.report import write_report
 
         print(f"bench: wrote {write_report(out, records)}", file=sys.stderr)
     if len(failed):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from bench.meshio import check_output_path, save_mesh
+from bench.io.meshio import check_output_path, save_mesh
 from bench.method import parse_params, resolve_target, run_method
 from bench.models import resolve_model
 from bench.registry import registry

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.results import SCHEMA_VERSION, write_record
+from bench.harness.results import SCHEMA_VERSION, write_record
 from metrics.protocol import Protocol
 
 __all__ = ["Job", "plan", "execute", "run_job", "method_label", "environment", "SHEET_VIEWS"]

@@ -14,8 +14,8 @@ from functools import lru_cache
 from pathlib import Path
 
 from bench.errors import InputError, UnknownNameError
-from bench.registry import suggest
 from bench.mesh import Mesh
+from bench.registry import suggest
 
 __all__ = ["ModelSpec", "BUNNY", "BUNNY_TEXTURED", "TORUS", "INTERIOR", "TORUS_PUZZLE",
            "CRATE", "BARREL", "BUNNY_TEXTURED_815", "BUNNY_TEXTURED_4698", "TORUS_13810",
@@ -50,26 +50,26 @@ def pymeshlab_sample(filename: str) -> Path:
 
 def _load_sample(filename: str) -> Callable[[], Mesh]:
     def load() -> Mesh:
-        from bench.meshio import load_mesh
+        from bench.io.meshio import load_mesh
 
         return load_mesh(pymeshlab_sample(filename))
     return load
 
 
 def _torus() -> Mesh:
-    from bench.torus import make_torus
+    from bench.models.torus import make_torus
 
     return make_torus()
 
 
 def _interior() -> Mesh:
-    from bench.interior import make_interior
+    from bench.models.interior import make_interior
 
     return make_interior()
 
 
 def _torus_puzzle() -> Mesh:
-    from bench.puzzle import make_torus_puzzle
+    from bench.models.puzzle import make_torus_puzzle
 
     return make_torus_puzzle()
 
@@ -84,24 +84,24 @@ BUNNY_TEXTURED = ModelSpec(
     _load_sample("bunny10k_textured.obj"), requires={"pymeshlab": "pymeshlab>=2023.12"})
 TORUS = ModelSpec(
     "torus", "swept spinning-ellipse torus with a non-linear texture map (L&T 2000 §5.4)",
-    "procedural (bench.torus, seed 2000)", _torus)
+    "procedural (bench.models.torus, seed 2000)", _torus)
 INTERIOR = ModelSpec(
     "interior", "spherical shell with four round openings around a densely tessellated "
     "bumpy object; faces classified exterior/interior (L&T 2000 §5.2)",
-    "procedural (bench.interior)", _interior)
+    "procedural (bench.models.interior)", _interior)
 TORUS_PUZZLE = ModelSpec(
     "torus-puzzle", "the swept torus at 57,660 faces with a jigsaw puzzle texture, lit "
-    "(Williams et al. 2003, Plate 1)", "procedural (bench.puzzle, seed 2003)", _torus_puzzle)
+    "(Williams et al. 2003, Plate 1)", "procedural (bench.models.puzzle, seed 2003)", _torus_puzzle)
 
 
 def _crate() -> Mesh:
-    from bench.gamemodels import make_crate
+    from bench.models.gamemodels import make_crate
 
     return make_crate()
 
 
 def _barrel() -> Mesh:
-    from bench.gamemodels import make_barrel
+    from bench.models.gamemodels import make_barrel
 
     return make_barrel()
 
@@ -111,7 +111,8 @@ def _predecimated(base: ModelSpec, faces: int) -> Callable[[], Mesh]:
     quadrics, seams kept closed, every UV chart kept): a stand-in for the sizes of
     González et al. 2008's Table 1, whose models are not public."""
     def load() -> Mesh:
-        from methods.engine import Policy, simplify_mesh
+        from methods.engine.policy import Policy
+        from methods.engine.simplify import simplify_mesh
 
         return simplify_mesh(base.load(), faces, Policy(texture_weight=1.0)).mesh
     return load
@@ -120,11 +121,11 @@ def _predecimated(base: ModelSpec, faces: int) -> Callable[[], Mesh]:
 CRATE = ModelSpec(
     "crate", "subdivided box (12 x 12 quads a side) with per-face UVs: duplicated "
     "vertices along every box edge, three at each corner (González et al. 2008)",
-    "procedural (bench.gamemodels, seed 2008)", _crate)
+    "procedural (bench.models.gamemodels, seed 2008)", _crate)
 BARREL = ModelSpec(
     "barrel", "two materials in one atlas: a stave body and two metal lids whose rims "
     "share positions, not vertices, with the body (sub-meshes meeting along a seam)",
-    "procedural (bench.gamemodels, seed 2008)", _barrel)
+    "procedural (bench.models.gamemodels, seed 2008)", _barrel)
 BUNNY_TEXTURED_815 = ModelSpec(
     "bunny-textured-815", "bunny-textured pre-decimated to 815 faces (Table 1 of "
     "González et al. 2008: 815 -> 100)", "bunny-textured, quadric engine (texture "
@@ -157,7 +158,7 @@ def resolve_model(word: str) -> Mesh:
     Registered names win over files of the same name in the working directory only
     when the word has no extension or path separator.
     """
-    from bench.meshio import load_mesh
+    from bench.io.meshio import load_mesh
     from bench.registry import registry
 
     models = registry("model")

@@ -45,12 +45,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, LUMA_B, LUMA_G, LUMA_R, SHADINGS
+
 __all__ = ["BACKGROUND", "SHADINGS", "face_id_buffers", "rasterize_luminance"]
 
-#: Background grey of empty pixels (8-bit), as in :mod:`metrics.render`.
-BACKGROUND = 128
-#: Shading modes, as in :mod:`metrics.render`.
-SHADINGS = ("flat", "gouraud")
 
 
 def vertex_light(positions, normals, eyes, ambient, diffuse, ks, shininess, specular):
@@ -121,7 +119,7 @@ def _project(positions: np.ndarray, cameras, width: int, height: int):
 # the same two kernels serve whole images (:func:`rasterize_luminance`) and the small
 # regions that image-driven simplification re-renders per candidate collapse, whatever
 # produced the rows (per-vertex arrays here, wedges and a simulated collapse in
-# :mod:`methods.image_cost`).
+# :mod:`methods.imaging.region`).
 
 T_X, T_Y, T_Z, T_W = 0, 3, 6, 9  # x, y (pixels, y down), z (NDC) and clip w of corners 0-2
 T_N = 12  # unit face normal (flat shading)
@@ -271,9 +269,9 @@ def _bilerp(tex, r0, c0, r1, c1, ax, ay, k):
 @njit(cache=True)
 def _luma(r, g, b, lit, spec):
     """8-bit quantised colour (r, g, b) * lit + spec, then its luminance on 0..255."""
-    y = np.floor(min(max(r * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * 0.299
-    y += np.floor(min(max(g * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * 0.587
-    y += np.floor(min(max(b * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * 0.114
+    y = np.floor(min(max(r * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * LUMA_R
+    y += np.floor(min(max(g * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * LUMA_G
+    y += np.floor(min(max(b * lit + spec, 0.0), 1.0) * 255.0 + 0.5) * LUMA_B
     return y
 
 
@@ -343,7 +341,7 @@ def _render(mesh, cameras, width, height, shading, specular, constants, cull_fro
     if cull_front is not None:
         cull[:] = np.asarray(cull_front, dtype=np.bool_).reshape(-1)
     if constants is None:
-        from metrics.render import DEFAULT_CONSTANTS as constants
+        constants = DEFAULT_CONSTANTS
     if not cameras or mesh.n_faces == 0:
         ids = np.full((len(cameras), height, width), -1, np.int32)
         return ids, np.full(ids.shape if shade else (0, height, width), float(BACKGROUND))
@@ -398,8 +396,6 @@ def face_id_buffers(mesh, cameras, width: int = 256, height: int = 256,
         Face indices into ``mesh.faces``, -1 where no face covers the pixel centre; row
         0 is the top of the image. Same rasterisation as :func:`rasterize_luminance`.
     """
-    from metrics.render import DEFAULT_CONSTANTS
-
     ids, _ = _render(mesh, cameras, width, height, "flat", False, DEFAULT_CONSTANTS,
                      cull_front, shade=False)
     return ids

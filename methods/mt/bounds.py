@@ -1,6 +1,6 @@
 """Per-node bounds of a Multi-Triangulation (Williams et al. 2003, §4 and §5.2-5.4).
 
-:func:`preprocess` gives every node of a :class:`methods.mt.MultiTriangulation`:
+:func:`preprocess` gives every node of a :class:`methods.mt.dag.MultiTriangulation`:
 
 - a bounding sphere of the original triangles mapped to it and of its own triangles;
 - a *silhouette normal cone* (§5.3): the normals of those original triangles and of
@@ -45,7 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from methods.mt import MultiTriangulation
+from methods.mt.dag import MultiTriangulation
+from metrics.shading import LUMA_B, LUMA_G, LUMA_R
 
 __all__ = ["NodeBounds", "preprocess", "texel_luminance_ranges", "luminance_pyramid"]
 
@@ -142,7 +143,7 @@ def luminance_pyramid(texture: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]
     """
     t = np.asarray(texture)
     if t.ndim == 3:
-        y = (0.299 * t[..., 0] + 0.587 * t[..., 1] + 0.114 * t[..., 2]) / 255.0
+        y = (LUMA_R * t[..., 0] + LUMA_G * t[..., 1] + LUMA_B * t[..., 2]) / 255.0
     elif t.ndim == 2:
         y = t / 255.0
     else:

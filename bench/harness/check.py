@@ -41,7 +41,7 @@ def metric_directions() -> dict[str, bool]:
 
 def _key(model: str, label: str, target: int, shading: str) -> str:
     """``model | method | target | shading``; the shading is the evaluation's, with
-    ``-spec`` when specular was on (:func:`bench.results.shading_label`)."""
+    ``-spec`` when specular was on (:func:`bench.harness.results.shading_label`)."""
     return f"{model} | {label} | {target} | {shading}"
 
 
@@ -51,7 +51,7 @@ def make_baseline(records: list[dict]) -> dict:
     Metrics that are missing or not finite (NaN: undefined for that model) are left out,
     so they can be neither a regression nor an improvement.
     """
-    from bench.results import shading_label
+    from bench.harness.results import shading_label
 
     directions = metric_directions()
     entries = {}

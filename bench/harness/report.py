@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.results import load_records, records_table, shading_label
+from bench.harness.results import load_records, records_table, shading_label
 
 __all__ = ["write_report"]
 
@@ -217,7 +217,7 @@ def _difference_uri(original: Path, simplified: Path) -> str | None:
 
 
 def _sheets(run_dir: Path, records: list[dict]) -> str:
-    from bench.runner import SHEET_VIEWS, Job
+    from bench.harness.runner import SHEET_VIEWS, Job
     from metrics.protocol import Protocol
 
     several = len(_shadings(records)) > 1

@@ -42,7 +42,7 @@ import scipy.ndimage as ndi
 from numba import njit
 
 from bench.mesh import Mesh, face_areas
-from metrics.image import luminance
+from metrics.shading import luminance
 
 __all__ = [
     "DEFAULT_HIGH",
@@ -276,7 +276,7 @@ def edge_penalties(mesh: Mesh, borders: np.ndarray | None = None,
         return welded.edges, penalty, crossing
     if not np.isfinite(mesh.uv).all():
         raise ValueError(f"{mesh.name}: mesh.uv has NaN or infinite values; load the mesh "
-                         "through bench.validate.build_mesh or fix its UVs")
+                         "through bench.io.validate.build_mesh or fix its UVs")
     if borders is None:
         borders = texture_borders(mesh.texture, **canny_params)
 

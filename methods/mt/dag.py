@@ -50,7 +50,8 @@ import numpy as np
 from numba import njit
 
 from bench.mesh import Mesh
-from methods.engine import _uv_minimiser, corner_wedges
+from methods.engine.quadrics import _uv_minimiser
+from methods.engine.wedges import corner_wedges
 
 __all__ = ["MultiTriangulation", "Cut", "build_mt", "from_log"]
 
@@ -236,7 +237,8 @@ def build_mt(mesh: Mesh, texture_weight: float = 1.0, target_faces: int = 1,
     boundary_weight : float
         The engine's boundary-plane weight.
     """
-    from methods.engine import Policy, simplify_mesh
+    from methods.engine.policy import Policy
+    from methods.engine.simplify import simplify_mesh
 
     if mesh.n_faces == 0:
         raise ValueError(f"{mesh.name}: a Multi-Triangulation needs a mesh with faces")
@@ -263,7 +265,7 @@ def from_log(mesh: Mesh, log: dict, texture_weight: float = 0.0) -> MultiTriangu
         The texture weight the engine ran with (> 0: UVs of merged wedges minimise the
         merged texture quadrics; 0: they are interpolated along the edge).
     """
-    from methods.engine import wedge_quadrics
+    from methods.engine.quadrics import wedge_quadrics
 
     w = mesh.welded
     P0 = w.positions.astype(np.float64)

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import InputError
+from bench.io.validate import build_mesh, warn
 from bench.mesh import Mesh
-from bench.validate import build_mesh, warn
 
 __all__ = ["FORMATS", "check_output_path", "load_mesh", "save_mesh"]
 
@@ -53,7 +53,7 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
     ------
     InputError
         Missing file, unknown format, unparsable content, or invalid data
-        (see :mod:`bench.validate`).
+        (see :mod:`bench.io.validate`).
     """
     path = Path(path)
     source = str(path)

@@ -1,0 +1,1 @@
+"""Mesh I/O and validation."""

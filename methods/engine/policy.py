@@ -1,0 +1,131 @@
+"""What a caller chooses: the :class:`Policy` (placement, cost-term weights, rules) and
+what comes back (:class:`EngineResult`), with the names of placements, rejections and
+stop reasons."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.mesh import Mesh
+
+PLACEMENTS = {"optimal": 0, "endpoints": 1, "midpoint": 2, "memoryless": 3}
+
+
+#: Rejection counters, in the order of the kernel's ``rejects`` array.
+REJECTIONS = ("link condition", "boundary pinch", "duplicate face", "fold-over",
+              "non-manifold edge", "boundary lock", "seam rule")
+
+
+STOP_REASONS = {0: "reached the target", 1: "no valid collapse remains"}
+
+
+_N_REJECTIONS = len(REJECTIONS)
+
+
+# Lindstrom–Turk constants: CGAL's defaults (alpha 1°, volume and boundary weights 0.5,
+# no shape term), which follow the 1998/1999 papers.
+LT_ALPHA_DEG = 1.0
+
+
+LT_VOLUME_WEIGHT = 0.5
+
+
+LT_BOUNDARY_WEIGHT = 0.5
+
+
+LT_SHAPE_WEIGHT = 0.0
+
+
+@dataclass(frozen=True)
+class Policy:
+    """How edges are costed and where the kept vertex goes.
+
+    Attributes
+    ----------
+    placement : str
+        A key of :data:`PLACEMENTS`.
+    quadric_weight : float
+        Weight of the Garland–Heckbert quadric error.
+    memoryless_weight : float
+        Weight of the Lindstrom–Turk cost (methods.engine.lindstrom_turk).
+    canny_weight : float
+        Weight of the González 2007 texture-border penalty (needs ``borders``).
+    boundary_weight : float
+        Weight of the boundary-preserving planes added to the quadrics (Garland &
+        Heckbert 1997 §6.1); 1000 is QSlim's default.
+    max_normal_rotation : float
+        Degrees a surviving face's normal may turn in one collapse.
+    boundary_lock : bool
+        Keep boundary vertices fixed.
+    texture_weight : float
+        > 0: the quadric term uses Garland & Heckbert 1998 wedge quadrics over position
+        and ``texture_weight`` × UV (meshes with UVs only); new UVs minimise them.
+    r5_uv : bool
+        With ``memoryless`` placement, new UVs by the R^5 oriented volumes of Lindstrom
+        & Turk 2000 §4.1.1, per texture patch (κ per patch); otherwise UVs of merged
+        wedges are interpolated along the collapsed edge.
+    seam_rule : bool
+        Seam vertices move only along their seam (see ``_evaluate``), so every UV chart
+        survives; without it seams stay closed but may drift across charts.
+    uv_correction : bool
+        González et al. 2008's texture-coordinate correction (§3, the α, β equations):
+        a wedge whose vertex moves takes the UV that the texture map of one of its own
+        triangles (before the collapse) gives the new position; see ``_uv_correction``.
+    boundary_rule : bool
+        A boundary vertex is never merged into an interior one (see ``_evaluate``).
+    """
+
+    placement: str = "optimal"
+    quadric_weight: float = 1.0
+    memoryless_weight: float = 0.0
+    canny_weight: float = 0.0
+    boundary_weight: float = 1000.0
+    max_normal_rotation: float = 90.0
+    boundary_lock: bool = False
+    seam_rule: bool = True
+    r5_uv: bool = True
+    texture_weight: float = 0.0
+    uv_correction: bool = False
+    boundary_rule: bool = False
+
+    def __post_init__(self):
+        if self.placement not in PLACEMENTS:
+            raise ValueError(f"unknown placement {self.placement!r}; choose one of "
+                             f"{', '.join(PLACEMENTS)}")
+        if not 0 < self.max_normal_rotation <= 180:
+            raise ValueError("max_normal_rotation must be in (0, 180] degrees")
+
+
+@dataclass
+class EngineResult:
+    """What :func:`simplify_mesh` returns.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The simplified mesh, render vertices rebuilt from the surviving wedges.
+    stop_reason : str or None
+        None when the target was reached; otherwise why the engine stopped.
+    stats : dict
+        collapses, cost evaluations, rejections by rule, seconds.
+    log : dict of ndarray
+        The collapse sequence: ``removed`` (c,) welded vertex removed by collapse i,
+        ``kept`` (c,) the vertex it merged into, ``position`` (c, 3) the kept vertex's
+        new position, ``removed_faces`` (c, 2) faces deleted (-1 when only one),
+        ``changed_start`` (c + 1,) and ``changed_faces``: CSR lists of the faces whose
+        corner moved from ``removed`` to ``kept`` (each is one face removed and one
+        created, under the same id).
+    """
+
+    mesh: Mesh
+    stop_reason: str | None
+    stats: dict = field(default_factory=dict)
+    log: dict = field(default_factory=dict)
+    #: final per-vertex quadrics (nv, 10) and which welded vertices survive (nv,), for
+    #: inspection and tests
+    quadrics: np.ndarray | None = None
+    vertex_alive: np.ndarray | None = None
+    #: with an image term: the maintained luminance images of the result (V, H, W)
+    images: np.ndarray | None = None

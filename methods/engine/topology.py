@@ -1,0 +1,240 @@
+"""Welded topology in flat arrays: per-vertex corner lists, neighbours, the faces of an
+edge, and the validity checks of a collapse (link condition, boundary pinch, duplicate
+faces, fold-over, non-manifold edges, boundary lock)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _compact(v, vhead, cnext, falive):
+    prev = -1
+    c = vhead[v]
+    while c != -1:
+        nxt = cnext[c]
+        if not falive[c // 3]:
+            if prev == -1:
+                vhead[v] = nxt
+            else:
+                cnext[prev] = nxt
+        else:
+            prev = c
+        c = nxt
+
+
+@njit(cache=True)
+def _neighbors(v, F, vhead, cnext, falive, mark, tick, out):
+    """Distinct neighbours of v into ``out``; returns their count. ``mark``/``tick``
+    deduplicate without clearing (tick[0] is bumped per call)."""
+    tick[0] += 1
+    t = tick[0]
+    mark[v] = t
+    n = 0
+    c = vhead[v]
+    while c != -1:
+        f = c // 3
+        if falive[f]:
+            for k in range(3):
+                w = F[f, k]
+                if mark[w] != t:
+                    mark[w] = t
+                    out[n] = w
+                    n += 1
+        c = cnext[c]
+    return n
+
+
+@njit(cache=True)
+def _edge_faces(u, v, F, vhead, cnext, falive, out):
+    """Alive faces containing both u and v, into ``out``; returns the count."""
+    n = 0
+    c = vhead[u]
+    while c != -1:
+        f = c // 3
+        if falive[f] and (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v):
+            if n < out.shape[0]:
+                out[n] = f
+            n += 1
+        c = cnext[c]
+    return n
+
+
+@njit(cache=True)
+def _third(F, f, a, b):
+    for k in range(3):
+        w = F[f, k]
+        if w != a and w != b:
+            return w
+    return -1
+
+
+@njit(cache=True)
+def _normal(pa, pb, pc):
+    return np.cross(pb - pa, pc - pa)
+
+
+@njit(cache=True)
+def _normal3(ax, ay, az, bx, by, bz, cx, cy, cz):
+    """(b - a) x (c - a) from scalars: no temporary arrays in the hot loop."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    vx, vy, vz = cx - ax, cy - ay, cz - az
+    return uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+
+
+@njit(cache=True)
+def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nbr_v,
+           efaces, cos_limit, boundary_lock):
+    """0 if collapsing u into v at p is valid, else 1 + index into REJECTIONS."""
+    k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
+    if k > 2 or k == 0:
+        return 5  # non-manifold edge (k == 0 cannot happen for a live edge)
+    nu = _neighbors(u, F, vhead, cnext, falive, mark, tick, nbr_u)
+    nv = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr_v)  # mark now holds v's
+    t = tick[0]
+    common = 0
+    for i in range(nu):
+        w = nbr_u[i]
+        if w != v and w != u and mark[w] == t:
+            common += 1
+    if common != k:
+        return 1  # link condition
+    if boundary_lock or k == 2:
+        bu = vboundary[u]
+        bv = vboundary[v]
+        if boundary_lock and (bu or bv):
+            return 6
+        if k == 2 and bu and bv:
+            return 2  # boundary pinch
+    # Duplicate faces: a face of u (not on the edge) must not coincide with one of v
+    # once u is renamed v. Also the fold-over test for every face that moves.
+    for side in range(2):
+        x = u if side == 0 else v
+        y = v if side == 0 else u
+        c = vhead[x]
+        while c != -1:
+            f = c // 3
+            if falive[f] and not (F[f, 0] == y or F[f, 1] == y or F[f, 2] == y):
+                a = -1
+                b = -1
+                for j in range(3):
+                    if F[f, j] != x:
+                        if a == -1:
+                            a = F[f, j]
+                        else:
+                            b = F[f, j]
+                if side == 0:
+                    c2 = vhead[v]
+                    while c2 != -1:
+                        g = c2 // 3
+                        if falive[g] and not (F[g, 0] == u or F[g, 1] == u or F[g, 2] == u):
+                            if ((F[g, 0] == a or F[g, 1] == a or F[g, 2] == a)
+                                    and (F[g, 0] == b or F[g, 1] == b or F[g, 2] == b)):
+                                return 3  # duplicate face
+                        c2 = cnext[c2]
+                # fold-over: the face with x moved to p
+                i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
+                b0, b1, b2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], P[i1, 0], P[i1, 1],
+                                      P[i1, 2], P[i2, 0], P[i2, 1], P[i2, 2])
+                if i0 == x:  # the same triangle with x moved to p
+                    a0, a1, a2 = _normal3(p[0], p[1], p[2], P[i1, 0], P[i1, 1], P[i1, 2],
+                                          P[i2, 0], P[i2, 1], P[i2, 2])
+                elif i1 == x:
+                    a0, a1, a2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], p[0], p[1], p[2],
+                                          P[i2, 0], P[i2, 1], P[i2, 2])
+                else:
+                    a0, a1, a2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], P[i1, 0], P[i1, 1],
+                                          P[i1, 2], p[0], p[1], p[2])
+                lb = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
+                la = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+                if la <= 1e-12 * lb or la == 0.0:
+                    return 4
+                if lb > 0.0:
+                    if (b0 * a0 + b1 * a1 + b2 * a2) / (la * lb) < cos_limit:
+                        return 4
+            c = cnext[c]
+    return 0
+
+
+@njit(cache=True)
+def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, tick,
+                    tri_a, tri_b, tri_c, bnd_a, bnd_b, link):
+    """The Lindstrom–Turk profile of edge (a, b): triangles around either end, their
+    boundary edges (oriented as in the triangle) and the link vertices. Returns
+    (n_tris, n_bnd, n_link), or (-1, 0, 0) when the workspace is too small."""
+    cap = tri_a.shape[0]
+    n_tris = 0
+    n_bnd = 0
+    n_link = 0
+    tick[0] += 1
+    t = tick[0]
+    mark[a] = t
+    mark[b] = t
+    for side in range(2):
+        x = a if side == 0 else b
+        y = b if side == 0 else a
+        c = vhead[x]
+        while c != -1:
+            f = c // 3
+            if falive[f]:
+                has_y = F[f, 0] == y or F[f, 1] == y or F[f, 2] == y
+                if side == 0 or not has_y:  # faces of the edge are counted once
+                    if n_tris == cap:
+                        return -1, 0, 0
+                    f0, f1, f2 = F[f, 0], F[f, 1], F[f, 2]
+                    for d in range(3):  # scalar copies: no temporary views per row
+                        tri_a[n_tris, d] = P[f0, d]
+                        tri_b[n_tris, d] = P[f1, d]
+                        tri_c[n_tris, d] = P[f2, d]
+                    n_tris += 1
+                    for j in range(3):
+                        i0, i1 = F[f, j], F[f, (j + 1) % 3]
+                        if (i0 == a or i0 == b or i1 == a or i1 == b) and \
+                                vboundary[i0] and vboundary[i1] and \
+                                _edge_faces(i0, i1, F, vhead, cnext, falive, efaces) == 1:
+                            if n_bnd == cap:
+                                return -1, 0, 0
+                            bnd_a[n_bnd] = P[i0]
+                            bnd_b[n_bnd] = P[i1]
+                            n_bnd += 1
+                    for j in range(3):
+                        w = F[f, j]
+                        if mark[w] != t:
+                            mark[w] = t
+                            if n_link == cap:
+                                return -1, 0, 0
+                            for d in range(3):
+                                link[n_link, d] = P[w, d]
+                            n_link += 1
+            c = cnext[c]
+    return n_tris, n_bnd, n_link
+
+
+@njit(cache=True)
+def _has_vertex(F, f, x):
+    return F[f, 0] == x or F[f, 1] == x or F[f, 2] == x
+
+
+def _corner_lists(F: np.ndarray, nv: int):
+    """vhead (nv,) and cnext (3m,) linking each vertex's corners, in corner order."""
+    corners = F.reshape(-1).astype(np.int64)
+    order = np.argsort(corners, kind="stable")
+    vhead = np.full(nv, -1, np.int64)
+    cnext = np.full(len(corners), -1, np.int64)
+    sorted_v = corners[order]
+    same = sorted_v[1:] == sorted_v[:-1]
+    cnext[order[:-1][same]] = order[1:][same]
+    first = np.ones(len(order), bool)
+    first[1:] = ~same
+    vhead[sorted_v[first]] = order[first]
+    return vhead, cnext
+
+
+def vboundary_of(w, nv: int) -> np.ndarray:
+    """(nv,) bool: welded vertices on a boundary edge."""
+    flags = np.zeros(nv, bool)
+    flags[w.edges[w.boundary].reshape(-1)] = True
+    return flags

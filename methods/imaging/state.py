@@ -1,0 +1,255 @@
+"""The image state the engine carries for its rendered cost terms, made and checked
+from Python (:class:`ImageTerm`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from methods.imaging.counters import STAT_NAMES
+from methods.imaging.entropy import entropy_init, view_entropy
+from methods.imaging.raster import ROW, scan_row, shade_region, shading_constants
+from methods.imaging.region import _MAX_RING
+from methods.imaging.rows import _light, fill_screen, fill_shading, project, row_box, vertex_normal
+from methods.imaging.tiles import TILE, build_tiles
+from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, SHADINGS
+
+
+def _workspace(n_views, nv, m, n_wedges, height, width):
+    """Scratch arrays: (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv,
+    ring, rects, buf, n3, sp, box, aff, amark, gmark, rowof, rowmark)."""
+    m = max(m, 1)
+    return (np.zeros(m, np.int64), np.zeros(1, np.int64), np.empty(m, np.int64),
+            np.empty((m, ROW)), np.empty((height, width)), np.empty((height, width), np.int64),
+            np.full(nv, -1, np.int64), np.zeros((n_views, _MAX_RING, 4)),
+            np.full(n_wedges, -1, np.int64), np.zeros((64, 2)), np.empty(_MAX_RING, np.int64),
+            np.empty((n_views, 4), np.int64), np.empty(1024, np.int64), np.empty(3),
+            np.empty(4), np.empty(4, np.int64), np.empty(8192, np.int64),
+            np.zeros(m, np.int64), np.zeros(m, np.int64), np.zeros(m, np.int64),
+            np.zeros(m, np.int64))
+
+
+def entropy_state(n_views, m, on=False, background=True, shade=True):
+    """The ``ent`` member of an image state: per-view face pixel counts and scratch
+    (see :func:`entropy_init`); (1, 1) placeholders when the entropy term is off."""
+    size = m + 1 if on else 1
+    flags = np.array([float(on), float(background), float(shade), 0.0])
+    return (np.zeros((n_views if on else 1, size), np.int64), np.zeros(max(n_views, 1)),
+            np.zeros(max(n_views, 1), np.int64), np.zeros(size, np.int64),
+            np.zeros(size, np.int64), np.zeros(size, np.int64), flags, np.zeros(1, np.int64))
+
+
+def dummy_state():
+    """An image state of the right types for engine runs without the image term."""
+    img = (np.zeros((1, 4, 4)), np.zeros((1, 3)), np.zeros(1, np.bool_), np.zeros((1, 1, 1)),
+           np.zeros((1, 1, 1)), np.zeros((1, 1, 4)), np.zeros((1, 1, 4), np.int32),
+           np.zeros((1, 3)), np.zeros((1, 1, 4)), np.zeros(8), np.zeros((1, 1, 3), np.uint8),
+           np.zeros(len(STAT_NAMES), np.int64), np.zeros((1, 1, 1), np.int64),
+           np.zeros((1, 1, 1)), entropy_state(1, 1))
+    tiles = (np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64), np.zeros(1, np.int32),
+             np.zeros((1, 1, 4), np.int32))
+    return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
+
+
+def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges, entropy=None):
+    """Arrays of an image state; :func:`full_render` fills them.
+
+    Parameters
+    ----------
+    M : ndarray (V, 4, 4)
+        Clip-space transform of each view, applied to engine positions.
+    eyes : ndarray (V, 3)
+        Eye positions in engine coordinates (the headlight).
+    cull : ndarray (V,) bool
+        Views drawn with front faces culled (interior views, §5.2).
+    Y0 : ndarray (V, H, W)
+        Luminance of the original model.
+    consts : ndarray (8,)
+        :func:`methods.imaging.raster.shading_constants`.
+    texture : ndarray (h, w, 3) uint8
+    nv, m, n_wedges : int
+        Vertices, faces and wedges of the engine mesh.
+    entropy : (bool, bool), optional
+        (background counted, luminance shaded): keep the viewpoint entropy's face pixel
+        counts (:func:`entropy_init` fills them after :func:`full_render`).
+    """
+    n_views, height, width = Y0.shape
+    img = (np.ascontiguousarray(M, np.float64), np.ascontiguousarray(eyes, np.float64),
+           np.ascontiguousarray(cull, np.bool_), np.ascontiguousarray(Y0, np.float64),
+           np.full(Y0.shape, 128.0), np.zeros((n_views, nv, 4)),
+           np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)), np.zeros((n_views, nv, 4)),
+           np.ascontiguousarray(consts, np.float64), np.ascontiguousarray(texture, np.uint8),
+           np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64),
+           np.full(Y0.shape, np.inf),
+           entropy_state(n_views, m) if entropy is None else
+           entropy_state(n_views, m, True, entropy[0], entropy[1]))
+    return img, _workspace(n_views, nv, m, n_wedges, height, width)
+
+
+@njit(cache=True, parallel=True)
+def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background):
+    """Set every per-vertex and per-face quantity from the mesh and render all views
+    from scratch into ``Y``, ``IDS`` (the face seen at each pixel, -1 empty) and ``DZ``
+    (its depth)."""
+    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
+    vslot, ov_light, wslot, new_uv = iws[6], iws[7], iws[8], iws[9]
+    n_views, height, width = Y.shape
+    nv, m = P.shape[0], F.shape[0]
+    gouraud = consts[6] != 0.0
+    for i in prange(nv):
+        if not valive[i]:
+            continue
+        for h in range(n_views):
+            project(M, h, P[i], width, height, S[h, i])
+    if gouraud:
+        for i in prange(nv):
+            if not valive[i]:
+                continue
+            buf = np.empty(1024, np.int64)
+            vertex_normal(i, -1, -1, P[i], P, F, vhead, cnext, falive, buf, vn[i])
+            for h in range(n_views):
+                _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], consts, L[h, i], 0)
+    live = np.flatnonzero(falive)
+    for h in prange(n_views):
+        t = np.empty((max(live.shape[0], 1), ROW))
+        depth = np.full((height, width), np.inf)
+        local = np.full((height, width), -1, np.int32)
+        none_i = np.full(1, -1, np.int64)
+        for k in range(live.shape[0]):
+            fill_screen(t, k, live[k], h, -1, -1, S[h, 0], S, F)
+            fill_shading(t, k, live[k], h, -1, -1, P[0], P, F, FW, uv, L, vslot, ov_light,
+                         wslot, new_uv, none_i, none_i, 0, consts)
+            row_box(t, k, width, height, fbox[h, live[k]])
+            scan_row(t, k, k, 0, width - 1, 0, height - 1, cull[h], depth, local)
+        shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], consts, texture,
+                     background, Y[h])
+        for r in range(height):
+            for c in range(width):
+                IDS[h, r, c] = live[local[r, c]] if local[r, c] >= 0 else -1
+                DZ[h, r, c] = depth[r, c]
+
+
+@dataclass(frozen=True)
+class ImageTerm:
+    """The image cost of :func:`methods.engine.simplify_mesh` (Lindstrom & Turk 2000).
+
+    Attributes
+    ----------
+    cameras : sequence of V metrics.views.Camera
+        Fitted to the ORIGINAL model, like ``reference``.
+    reference : ndarray (V, H, W)
+        Luminance of the original model in those views (``Y^0``), rendered with the
+        same settings (:func:`methods.imaging.raster.rasterize_luminance`).
+    shading : {"flat", "gouraud"}
+    specular : bool
+    cull_front : sequence of V bool, optional
+        Views drawn with front faces culled (§5.2's interior views).
+    weight : float
+        Multiplies equation 8 in the engine's cost sum. 0 with ``entropy_weight`` set:
+        only face ids are rendered (no shading, ``Y`` is not kept up to date).
+    constants : metrics.render.ShadingConstants, optional
+    entropy_weight : float
+        Multiplies the sum over views of |change of the viewpoint entropy| (González et
+        al. 2008, §3), computed from the same region re-renders (0: off).
+    entropy_background : bool
+        Count the background as one more "face" in the entropy (Vázquez et al.'s
+        definition); otherwise only the faces' projected areas.
+    """
+
+    cameras: tuple
+    reference: np.ndarray
+    shading: str = "flat"
+    specular: bool = False
+    cull_front: tuple | None = None
+    weight: float = 1.0
+    constants: object = None
+    entropy_weight: float = 0.0
+    entropy_background: bool = True
+
+    def _frame(self, lo, scale):
+        """Per-view clip transforms and eyes in engine coordinates (p_world = p * scale
+        + lo)."""
+        n_views, height, width = self.reference.shape
+        affine = np.eye(4)
+        affine[:3, :3] *= scale
+        affine[:3, 3] = lo
+        M = np.stack([c.projection_matrix(width / height) @ c.view_matrix() @ affine
+                      for c in self.cameras])
+        eyes = (np.stack([np.asarray(c.eye, np.float64) for c in self.cameras]) - lo) / scale
+        return M, eyes
+
+    def _new(self, mesh, uv, nv, m, lo, scale):
+
+        if self.shading not in SHADINGS:
+            raise ValueError(f"shading must be one of {SHADINGS}, got {self.shading!r}")
+        n_views = len(self.cameras)
+        if self.reference.ndim != 3 or self.reference.shape[0] != n_views:
+            raise ValueError(f"reference must hold one image per camera ({n_views}), got "
+                             f"shape {self.reference.shape}")
+        constants = self.constants
+        if constants is None:
+            constants = DEFAULT_CONSTANTS
+        textured = bool(mesh.has_texture)
+        consts = shading_constants(constants, self.specular, self.shading == "gouraud",
+                                   textured)
+        texture = (np.ascontiguousarray(mesh.texture[:, :, :3]) if textured
+                   else np.zeros((1, 1, 3), np.uint8))
+        cull = np.zeros(n_views, np.bool_)
+        if self.cull_front is not None:
+            cull[:] = np.asarray(self.cull_front, dtype=np.bool_).reshape(-1)
+        M, eyes = self._frame(lo, scale)
+        entropy = None
+        if self.entropy_weight != 0.0:
+            entropy = (bool(self.entropy_background), self.weight != 0.0)
+        return new_state(M, eyes, cull, self.reference, consts, texture, nv, m, len(uv),
+                         entropy)
+
+    def state(self, mesh, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):
+        """The engine's image state for its arrays, with the images rendered."""
+
+        img, iws = self._new(mesh, uv, len(P), len(F), lo, scale)
+        full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, float(BACKGROUND))
+        if self.entropy_weight != 0.0:
+            entropy_init(img[12], img[14])
+        height, width = self.reference.shape[1:]
+        tiles = build_tiles(img[6], falive, TILE, -(-width // TILE), -(-height // TILE))
+        return img, tiles, iws
+
+    def statistics(self, mesh, img, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):
+        """Counters of the run; with ``verify``, a from-scratch render of the final mesh
+        compared with the maintained images."""
+
+        counts = dict(zip(STAT_NAMES, (int(x) for x in img[11])))
+        out = {k: counts[k] for k in ("image_evaluations", "pixels_shaded", "face_rows",
+                                      "tile_rebuilds")}
+        if counts["run_cycles"] > 0:  # where the time goes
+            for k in ("gather", "shade", "setup"):
+                out[f"{k}_share"] = counts[f"{k}_cycles"] / counts["run_cycles"]
+        out["rasterizer_share"] = (counts["raster_cycles"] / counts["run_cycles"]
+                                   if counts["run_cycles"] > 0 else None)
+        Y, Y0 = img[4], img[3]
+        shaded = self.weight != 0.0 or self.entropy_weight == 0.0
+        if shaded:
+            out["image_sse"] = float(np.sum((Y0 - Y) ** 2))
+        entropy = self.entropy_weight != 0.0
+        if entropy:
+            CNT, SUM, TOT = img[14][:3]
+            out["view_entropy"] = [float(view_entropy(s, float(a))) for s, a in zip(SUM, TOT)]
+        if verify:
+            again, iws = self._new(mesh, uv, len(P), len(F), lo, scale)
+            full_render(again, iws, P, F, FW, uv, falive, vhead, cnext, valive,
+                        float(BACKGROUND))
+            if shaded:
+                out["image_mismatched_pixels"] = int(np.count_nonzero(again[4] != Y))
+            out["face_id_mismatched_pixels"] = int(np.count_nonzero(again[12] != img[12]))
+            out["depth_mismatched_pixels"] = int(np.count_nonzero(again[13] != img[13]))
+            if entropy:  # the maintained counts and entropies against fresh ones
+                entropy_init(again[12], again[14])
+                fresh = np.array([view_entropy(s, float(a))
+                                  for s, a in zip(again[14][1], again[14][2])])
+                out["entropy_count_mismatches"] = int(np.count_nonzero(again[14][0] != CNT))
+                out["entropy_max_error"] = float(np.max(np.abs(
+                    fresh - np.asarray(out["view_entropy"]))))
+        return out

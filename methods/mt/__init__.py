@@ -1,0 +1,1 @@
+"""The Multi-Triangulation of Williams et al. 2003."""

@@ -1,0 +1,216 @@
+"""Budget refinement of a cut with two queues (Williams et al. 2003, §5.1): refine the
+node of largest error, coarsen the one of smallest, until the face budget holds."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numba import njit
+
+from methods.mt.bounds import NodeBounds
+from methods.mt.csf import ContrastSensitivity
+from methods.mt.dag import Cut, MultiTriangulation, _set_applied, _set_refined
+from methods.mt.errors import node_errors
+
+
+@njit(cache=True)
+def _heap_push(keys, vals, n, key, val):
+    """Min-heap push on (keys, vals)[:n], growing the arrays when full; returns
+    (keys, vals, new size)."""
+    if n == keys.shape[0]:
+        k2 = np.empty(2 * n + 16)
+        v2 = np.empty(2 * n + 16, np.int64)
+        k2[:n] = keys[:n]
+        v2[:n] = vals[:n]
+        keys, vals = k2, v2
+    i = n
+    keys[i] = key
+    vals[i] = val
+    while i > 0:
+        p = (i - 1) // 2
+        if keys[p] <= keys[i]:
+            break
+        keys[p], keys[i] = keys[i], keys[p]
+        vals[p], vals[i] = vals[i], vals[p]
+        i = p
+    return keys, vals, n + 1
+
+
+@njit(cache=True)
+def _heap_pop(keys, vals, n):
+    """Pop the minimum of (keys, vals)[:n]; returns (value, new size)."""
+    top = vals[0]
+    n -= 1
+    keys[0] = keys[n]
+    vals[0] = vals[n]
+    i = 0
+    while True:
+        a = 2 * i + 1
+        if a >= n:
+            break
+        b = a + 1
+        s = a if b >= n or keys[a] <= keys[b] else b
+        if keys[i] <= keys[s]:
+            break
+        keys[i], keys[s] = keys[s], keys[i]
+        vals[i], vals[s] = vals[s], vals[i]
+        i = s
+    return top, n
+
+
+@njit(cache=True)
+def _lower_one(i, err, applied, delta, parent_start, parents, child_start, children, n_ap,
+               n_rc, rk, rv, nr, lk, lv, nl):
+    """Apply frontier node i; it joins R, parents that became lowerable join L."""
+    _set_applied(i, applied, parent_start, parents, child_start, children, n_ap, n_rc)
+    rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i)
+    for j in range(parent_start[i], parent_start[i + 1]):
+        p = parents[j]
+        if n_rc[p] == 0:
+            lk, lv, nl = _heap_push(lk, lv, nl, err[p], p)
+    return rk, rv, nr, lk, lv, nl
+
+
+@njit(cache=True)
+def _raise_one(i, err, applied, delta, parent_start, parents, child_start, children, n_ap,
+               n_rc, rk, rv, nr, lk, lv, nl):
+    """Refine frontier node i; it joins L, children that became raisable join R."""
+    _set_refined(i, applied, parent_start, parents, child_start, children, n_ap, n_rc)
+    lk, lv, nl = _heap_push(lk, lv, nl, err[i], i)
+    for j in range(child_start[i], child_start[i + 1]):
+        ch = children[j]
+        if n_ap[ch] == 0:
+            rk, rv, nr = _heap_push(rk, rv, nr, -err[ch], ch)
+    return rk, rv, nr, lk, lv, nl
+
+
+@njit(cache=True)
+def _refine(budget, err, applied, n_faces, delta, parent_start, parents, child_start,
+            children, n_ap, n_rc):
+    """simplifyBudget of §5.1 on the cut ``applied``; returns (faces, raised, lowered).
+
+    R holds applied nodes whose parents are all refined (candidates to raise), keyed
+    by -error; L holds refined nodes whose children are all applied (candidates to
+    lower), keyed by error. Both are rebuilt from the frontier at the start (the
+    paper's updateErrorKeys). Entries go stale when the frontier moves and are skipped
+    when popped. The loop alternates a lowering phase (while over budget) and a raising
+    phase (while within it) and stops when the node lowered last is the node raised
+    last, so it ends after a lowering phase: the cut meets the budget whenever the
+    coarsest cut does, and is short of it by less than that node's faces."""
+    c = applied.shape[0]
+    rk = np.empty(c + 16)
+    rv = np.empty(c + 16, np.int64)
+    lk = np.empty(c + 16)
+    lv = np.empty(c + 16, np.int64)
+    nr = 0
+    nl = 0
+    for i in range(c):
+        if applied[i] and n_ap[i] == 0:
+            rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i)
+        elif not applied[i] and n_rc[i] == 0:
+            lk, lv, nl = _heap_push(lk, lv, nl, err[i], i)
+    last_raised = -1
+    raised = 0
+    lowered = 0
+    # Each exchange trades a refined node for one of larger error, so the loop ends;
+    # the cap is a guard against error ties cycling.
+    for _ in range(4 * c + 16):
+        last_dropped = -1
+        while n_faces > budget and nl > 0:
+            i, nl = _heap_pop(lk, lv, nl)
+            if applied[i] or n_rc[i] != 0:
+                continue  # stale
+            rk, rv, nr, lk, lv, nl = _lower_one(i, err, applied, delta, parent_start, parents,
+                                                child_start, children, n_ap, n_rc, rk, rv, nr,
+                                                lk, lv, nl)
+            n_faces -= delta[i]
+            lowered += 1
+            last_dropped = i
+        if last_raised != -1 and last_dropped == last_raised:
+            break
+        last_raised = -1
+        while n_faces <= budget and nr > 0:
+            i, nr = _heap_pop(rk, rv, nr)
+            if not applied[i] or n_ap[i] != 0:
+                continue  # stale
+            rk, rv, nr, lk, lv, nl = _raise_one(i, err, applied, delta, parent_start, parents,
+                                                child_start, children, n_ap, n_rc, rk, rv, nr,
+                                                lk, lv, nl)
+            n_faces += delta[i]
+            raised += 1
+            last_raised = i
+        if last_raised == -1:
+            break
+    while n_faces > budget and nl > 0:  # only after the guard tripped: back to the budget
+        i, nl = _heap_pop(lk, lv, nl)
+        if applied[i] or n_rc[i] != 0:
+            continue
+        rk, rv, nr, lk, lv, nl = _lower_one(i, err, applied, delta, parent_start, parents,
+                                            child_start, children, n_ap, n_rc, rk, rv, nr,
+                                            lk, lv, nl)
+        n_faces -= delta[i]
+        lowered += 1
+    return n_faces, raised, lowered
+
+
+def refine(cut: Cut, errors: np.ndarray, budget: int) -> tuple[int, int]:
+    """Move ``cut`` to ``budget`` faces greedily by ``errors`` (§5.1), in place.
+
+    Returns (nodes raised, nodes lowered). The result has at most ``budget`` faces
+    (unless even the coarsest cut has more) and more than ``budget`` minus the faces of
+    the last node lowered.
+    """
+    mt = cut.mt
+    if budget < 1:
+        raise ValueError(f"budget must be at least 1 face, got {budget}")
+    errors = np.ascontiguousarray(errors, dtype=np.float64)
+    if errors.shape != (mt.n_nodes,):
+        raise ValueError(f"errors must have shape ({mt.n_nodes},), got {errors.shape}")
+    faces, raised, lowered = _refine(int(budget), errors, cut.applied, int(cut.n_faces),
+                                     mt.delta, mt.parent_start, mt.parents, mt.child_start,
+                                     mt.children, cut.n_applied_parents,
+                                     cut.n_refined_children)
+    cut.n_faces = int(faces)
+    return int(raised), int(lowered)
+
+
+class Refiner:
+    """Per-view cuts of one MT under one error, each view starting from the last cut."""
+
+    def __init__(self, mt: MultiTriangulation, bounds: NodeBounds, error: str = "perceptual",
+                 lighting: str = "gouraud", specular: bool = True, ppd: float = 32.0,
+                 peak_sensitivity: float = 200.0, silhouette_factor: float = 10.0):
+        self.mt, self.bounds = mt, bounds
+        self.error, self.lighting, self.specular = error, lighting, specular
+        self.ppd, self.silhouette_factor = ppd, silhouette_factor
+        self.csf = ContrastSensitivity(peak_sensitivity)
+        self.cut = mt.cut("coarsest")
+
+    def errors(self, camera, resolution: int):
+        return node_errors(self.bounds, camera, resolution, self.error, self.lighting,
+                           self.specular, self.ppd, self.csf, self.silhouette_factor)
+
+    def refine_view(self, camera, budget: int, resolution: int) -> dict:
+        """Refine the current cut for ``camera``; returns timing and counts."""
+        t = time.perf_counter()
+        err, status = self.errors(camera, resolution)
+        t_err = time.perf_counter() - t
+        raised, lowered = refine(self.cut, err, budget)
+        return {"seconds": time.perf_counter() - t, "error_seconds": t_err, "raised": raised,
+                "lowered": lowered, "faces": self.cut.n_faces,
+                "max_error": float(_max_on_cut(self.cut, err))}
+
+    def refine_object(self, budget: int) -> None:
+        """The view-independent cut: object-space texture deviation."""
+        refine(self.cut, self.bounds.deviation, budget)
+
+
+def _max_on_cut(cut: Cut, err: np.ndarray) -> float:
+    """The largest error among the applied collapses that could be raised next (the
+    simplifications in effect at the cut's frontier): the LOD's imperceptibility
+    distance (§3.4) when ``err`` holds imperceptibility distances."""
+    frontier = (~cut.applied) & (cut.n_refined_children == 0)
+    below = cut.applied & (cut.n_applied_parents == 0)
+    pick = err[below] if below.any() else err[frontier]
+    return float(pick.max()) if pick.size else 0.0

@@ -1,0 +1,59 @@
+"""The layering rule (README, "Layering"), checked two ways.
+
+* statically, by import-linter's contracts in pyproject.toml (``lint-imports``): the
+  core imports neither methods nor metrics, methods import the core and the metric
+  leaves only, plug-ins are independent, no import circles;
+* dynamically: a simplification process that imports and runs a view-based method
+  never loads pyrender or OpenGL (the renderer lives behind the protocol).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+_PROBE = textwrap.dedent("""
+    import sys
+    import numpy as np
+    import trimesh
+    from bench.mesh import Mesh
+    from methods.entropy_twin import EntropyTwin
+    from methods.image_driven import ImageDriven
+    ico = trimesh.creation.icosphere(2)
+    mesh = Mesh(ico.vertices, ico.faces.astype(np.int32), name="ball")
+    method = {method}
+    result = method.simplify(mesh, 120)
+    loaded = sorted(m for m in sys.modules if m.split(".")[0] in ("pyrender", "OpenGL")
+                    or m.startswith("metrics.") and m not in ("metrics.views", "metrics.shading"))
+    print(result.mesh.n_faces, *loaded)
+""")
+
+
+@pytest.mark.parametrize("method", [
+    "ImageDriven(resolution=32, presimplify_faces=240)",
+    "EntropyTwin(resolution=32)",
+])
+def test_simplifying_never_loads_the_renderer(method):
+    proc = subprocess.run([sys.executable, "-c", _PROBE.format(method=method)],
+                          capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    faces, *loaded = proc.stdout.split()
+    assert abs(int(faces) - 120) <= 2
+    assert loaded == [], f"a simplification process loaded {loaded}"
+
+
+@pytest.mark.skipif(shutil.which("lint-imports", path=str(Path(sys.executable).parent)) is None,
+                    reason="import-linter is not installed (pip install -e '.[test]')")
+def test_import_contracts_are_kept():
+    exe = str(Path(sys.executable).parent / "lint-imports")
+    proc = subprocess.run([exe, "--no-cache"], capture_output=True, text=True, cwd=ROOT,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stdout[-4000:]
+    assert "0 broken" in proc.stdout
