@@ -25,7 +25,7 @@ request; the version is pinned and the behaviour below is tested):
 - ``index_count`` defaults to ``len(indices)``, so the index buffer must be flat.
 - ``simplify_with_attributes`` declares no ctypes argument types for its C function, so
   a Python float for ``target_error`` raises ``ctypes.ArgumentError`` and Python ints
-  would go out as 32-bit ``int`` where C expects ``size_t``: every scalar is passed
+  would be passed as C ``int`` where it expects ``size_t``: every scalar is passed
   already C-typed (see :func:`_c_scalars`).
 """
 
@@ -78,12 +78,14 @@ class MeshoptParams:
 class MeshoptAttributesParams(MeshoptParams):
     """``MeshoptParams`` plus the attribute weights of ``simplify_with_attributes``.
 
-    normal_weight: the library's README uses 0.5 in its example and calls "around 1.0"
-    appropriate for normalised attributes (a change of 1/weight in an attribute over a
-    distance d costs about as much as moving d). uv_weight_scale multiplies the UV
-    weight the README recommends computing from the UV density,
-    1 / sqrt(mean |UV area| of a triangle) (see :func:`uv_density_weight`); 0 leaves UVs
-    out of the metric. The error bound then covers positions and attributes together.
+    normal_weight: the library's README (v0.22 on) uses 0.5 in its example and calls
+    "around 1.0" appropriate for normalised attributes, since a change of 1/weight in
+    an attribute over a distance d costs about as much as moving d. uv_weight_scale
+    multiplies the UV weight the README (v1.0) recommends computing from the UV
+    density, 1 / sqrt(mean |UV area| of a triangle) (:func:`uv_density_weight`; it
+    calls 10-100 usual); 0 leaves UVs out of the metric. The error bound then covers
+    positions and attributes together. (The C library in 0.2.30a0 is of the v0.22-0.23
+    era: it has SIMPLIFY_PRUNE but not meshopt_simplifyPrune.)
     """
 
     normal_weight: float = 0.5
