@@ -38,6 +38,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from bench.errors import MethodError, ParamError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult, target_tolerance
 
@@ -70,7 +71,7 @@ class MeshoptParams:
     bound_error: bool = False
     target_error: float = 0.01  #: used only with bound_error
     lock_border: bool = False  #: SIMPLIFY_LOCK_BORDER: never move border vertices
-    prune: bool = False  #: SIMPLIFY_PRUNE: remove small isolated components
+    prune: bool = False  #: SIMPLIFY_PRUNE: remove isolated components (needs bound_error)
     error_absolute: bool = False  #: SIMPLIFY_ERROR_ABSOLUTE: errors in model units
 
 
@@ -120,7 +121,7 @@ class Meshopt(Method):
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         import meshoptimizer
 
-        p = self.params
+        p = _checked(self.params)
 
         def call(destination, indices, positions, target_index_count, target_error, error):
             return meshoptimizer.simplify(
@@ -153,7 +154,7 @@ class MeshoptAttributes(Method):
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         import meshoptimizer
 
-        p = self.params
+        p = _checked(self.params)
         attributes, weights, weight_stats = _attributes(mesh, p)
 
         def call(destination, indices, positions, target_index_count, target_error, error):
@@ -234,6 +235,10 @@ def simplify_index_buffer(mesh: Mesh, target_faces: int, call, target_error: flo
     positions = np.ascontiguousarray(mesh.positions, dtype=np.float32)
     target_index_count = 3 * int(target_faces)
     kept, error = _run(call, indices, positions, target_index_count, target_error)
+    if len(kept) == 0:  # no LOD to degrade to: say so instead of returning nothing
+        raise MethodError(f"{mesh.name}: meshoptimizer left no triangles for a target of "
+                          f"{target_faces} faces (its result error {error:.4g}); ask for "
+                          "more faces")
     result = _compact(mesh, kept)
 
     # Record the error both ways: relative to the extent (the library's default unit)
@@ -301,6 +306,16 @@ def _stop_reason(call, indices, positions, reached: int, target: int, target_err
                     f"{error:.4g})")
     return (f"stopped at {reached} faces above the target of {target}: no collapse left that "
             f"keeps the seams and borders the library preserves (result error {error:.4g})")
+
+
+def _checked(p: MeshoptParams) -> MeshoptParams:
+    """The parameters, refused when they ask for what the library cannot do sensibly."""
+    if p.prune and not p.bound_error:
+        # Pruning drops any component whose removal stays under the error bound; with
+        # no bound that is every component (measured: bunny-textured to 0 faces at 2 %).
+        raise ParamError("prune=true removes components under target_error and, with no "
+                         "error bound, can remove the whole mesh: also set bound_error=true")
+    return p
 
 
 def _error_bound(p) -> float:

@@ -7,6 +7,7 @@ import ctypes
 import numpy as np
 import pytest
 
+from bench.errors import MethodError, ParamError
 from bench.mesh import Mesh
 from bench.method import parse_params, run_method, target_tolerance
 from bench.models import BUNNY, BUNNY_TEXTURED, CRATE
@@ -216,6 +217,20 @@ def test_params_parse_from_the_command_line():
     assert (p.bound_error, p.target_error, p.lock_border, p.normal_weight) == (
         True, 0.05, True, 1.0)
     assert MeshoptSloppy.Params().bound_error is False
+
+
+@pytest.mark.parametrize("name", SEAM_KEEPING)
+def test_prune_without_an_error_bound_is_refused(name):
+    with pytest.raises(ParamError, match="bound_error=true"):
+        run_method(VARIANTS[name](prune=True), grid(), 2)
+    out = run_method(VARIANTS[name](prune=True, bound_error=True, target_error=0.01), grid(), 2)
+    assert out.mesh.n_faces == 2
+
+
+def test_an_empty_result_is_a_clear_failure():
+    # the crate's coarsest sloppy grid under 4 faces keeps no triangle (measured)
+    with pytest.raises(MethodError, match="no triangles for a target of 4 faces"):
+        run_method(MeshoptSloppy(), CRATE.load(), 4)
 
 
 def test_requires_the_pinned_version():
