@@ -11,7 +11,7 @@ an engine calls it:
   1999 attribute quadrics over texture coordinates and normals.
 - ``meshopt-sloppy``: ``simplify_sloppy``, vertex clustering on a grid (after Lindstrom
   2000) that ignores topology and seams; the fast fallback engines use for the lowest
-  LODs. It never exceeds the target and often lands below it.
+  LODs. With no error bound it never exceeds the target and often lands below it.
 
 The library returns an index buffer into the original vertices; the result keeps the
 surviving vertices (UVs, normals, colours and the texture carried along) and drops
@@ -51,10 +51,11 @@ REQUIREMENT = "meshoptimizer==0.2.30a0"
 #: above the target is the library's topology rules (seams, borders), not its error bound.
 UNBOUNDED_ERROR = float(np.finfo(np.float32).max)
 
-#: Why simplify_sloppy lands below a target: it searches grid sizes for the finest grid
-#: whose clustering stays at or under the target and takes the best one it found.
-SLOPPY_BELOW = ("simplify_sloppy never exceeds the target, and its search over grid sizes "
-                "ended on the finest grid it found under it")
+#: Why simplify_sloppy lands below a target: it searches grid sizes (whole cells per
+#: axis) and keeps the finest grid it found whose clustering stays under the target;
+#: the face count jumps between neighbouring grid sizes.
+SLOPPY_BELOW = ("simplify_sloppy keeps the finest grid it found whose clustering stays under "
+                "the target, and face counts jump between grid sizes")
 
 
 @dataclass
@@ -176,8 +177,9 @@ class MeshoptAttributes(Method):
 class MeshoptSloppy(Method):
     """meshoptimizer's ``simplify_sloppy``: grid vertex clustering, topology ignored.
 
-    Seams and borders are not kept (cracks and merged sheets are expected); the result
-    never exceeds the target and the grid search may stop below it.
+    Seams and borders are not kept (cracks and merged sheets are expected). With no
+    error bound the result never exceeds the target; the grid search often stops below
+    it. (With a bound the grid has at least 1/target_error cells per axis.)
     """
 
     name = "meshopt-sloppy"
@@ -301,9 +303,9 @@ def _stop_reason(call, indices, positions, reached: int, target: int, target_err
     if target_error != UNBOUNDED_ERROR:
         unbounded, _ = _run(call, indices, positions, 3 * target, UNBOUNDED_ERROR)
         if len(unbounded) < reached:
-            return (f"stopped at {reached} faces above the target of {target}: the next "
-                    f"collapse would exceed target_error={target_error:g} (result error "
-                    f"{error:.4g})")
+            return (f"stopped at {reached} faces above the target of {target}: the error "
+                    f"bound target_error={target_error:g} allows no coarser result (result "
+                    f"error {error:.4g})")
     return (f"stopped at {reached} faces above the target of {target}: no collapse left that "
             f"keeps the seams and borders the library preserves (result error {error:.4g})")
 
