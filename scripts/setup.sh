@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # Headless OpenGL through EGL on Mesa's llvmpipe (no GPU, no display needed), plus venv,
-# plus the C++ compiler that builds meshoptimizer's sdist (it has no wheels).
+# plus the C++ compiler pip needs to build meshoptimizer from its sdist (no wheel here).
 PKGS="libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgbm1 python3-venv g++"
 missing=$(dpkg-query -W -f='${db:Status-Abbrev} ${Package}\n' $PKGS 2>/dev/null | awk '$1!="ii"{print $2}'; \
           for p in $PKGS; do dpkg-query -W "$p" >/dev/null 2>&1 || echo "$p"; done)
