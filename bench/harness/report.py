@@ -276,14 +276,21 @@ def _timing(records: list[dict]) -> str:
 
 
 def _failures(records: list[dict]) -> str:
+    """Failed and skipped jobs with their errors, then metrics that raised in ok jobs
+    (whose other figures stand)."""
     bad = [r for r in records if r["status"] != "ok"]
     partial = [r for r in records if r["status"] == "ok" and r.get("metric_errors")]
     if not bad and not partial:
         return "<p>None.</p>"
-    return "".join(  # metrics that raised in an ok job: its other figures stand
-        f"<h3>{html.escape(r['job']['model'])} / {html.escape(r['job']['label'])} / "
-        f"{r['job']['target_faces']}: metric {html.escape(name)} failed</h3>"
-        f"<pre>{html.escape(str(error))}</pre>"
-        for r in partial for name, error in r["metric_errors"].items()) + "".join(f"<h3 class='{r['status']}'>{html.escape(r['job']['model'])} / "
-                   f"{html.escape(r['job']['label'])} / {r['job']['target_faces']}: {r['status']}</h3>"
-                   f"<pre>{html.escape(str(r.get('error')))}</pre>" for r in bad)
+    out = [f"<h3 class='{r['status']}'>{_job_title(r)}: {r['status']}</h3>"
+           f"<pre>{html.escape(str(r.get('error')))}</pre>" for r in bad]
+    out += [f"<h3>{_job_title(r)}: metric {html.escape(name)} failed</h3>"
+            f"<pre>{html.escape(str(error))}</pre>"
+            for r in partial for name, error in r["metric_errors"].items()]
+    return "".join(out)
+
+
+def _job_title(record: dict) -> str:
+    job = record["job"]
+    return (f"{html.escape(job['model'])} / {html.escape(job['label'])} / "
+            f"{job['target_faces']}")
