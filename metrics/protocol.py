@@ -161,7 +161,7 @@ def registered_metrics() -> tuple[list[tuple[str, object]], dict[str, str]]:
         if entry.available:
             usable.append((entry.name, entry.load()))
         else:
-            problems[entry.name] = entry.problem
+            problems[entry.name] = f"unavailable: {entry.problem}"
     return usable, problems
 
 
@@ -243,10 +243,12 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
     to ``metrics[name]`` and, for a :class:`~bench.metric.Value`, its per-view values to
     ``per_view[name]``.
 
-    A metric that raises (or returns something that is not a number) does not fail the
-    evaluation: its value is missing and ``errors[name]`` says why; ``bench check``
-    marks it ``newly failing`` where the baseline has a value. A metric returning None
-    or NaN is undefined for this model and left out, with no error.
+    A metric that raises, returns something that is not a number or is unavailable
+    (a missing backend) does not fail the evaluation: its value is missing and
+    ``errors[name]`` says why; ``bench check`` marks it ``newly failing`` where the
+    baseline has a value. A metric returning None or NaN is undefined for this model and
+    left out, with no error. A shared input that fails (the renderer, Metro) fails the
+    whole evaluation, as it is the protocol itself.
 
     Parameters
     ----------

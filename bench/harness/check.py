@@ -132,9 +132,8 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
         for metric, before in old["metrics"].items():
             after = new["metrics"].get(metric)
             if after is None and metric in new.get("metric_errors", {}):
-                error = new["metric_errors"][metric]  # "TypeName: message"
-                rows.append(Row(key, metric, before, "raised " + error.split(":")[0],
-                                "newly failing"))
+                error = new["metric_errors"][metric].splitlines()[0]
+                rows.append(Row(key, metric, before, error[:60], "newly failing"))
                 continue
             if after is None or metric not in directions:
                 rows.append(Row(key, metric, before, after, "not comparable"))
