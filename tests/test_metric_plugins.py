@@ -35,13 +35,13 @@ import os
 import numpy as np
 
 from bench.metric import Metric, Value
+from metrics.shading import luminance
 
 
 def luma_gap(original, simplified, ctx):
     """Mean absolute luminance difference per view, and its mean over views."""
-    a = ctx["original_images"].astype(np.float64) @ [0.299, 0.587, 0.114]
-    b = ctx["simplified_images"].astype(np.float64) @ [0.299, 0.587, 0.114]
-    per_view = np.abs(a - b).mean(axis=(1, 2))
+    gap = np.abs(luminance(ctx["original_images"]) - luminance(ctx["simplified_images"]))
+    per_view = gap.mean(axis=(1, 2))
     return Value(per_view.mean(), per_view)
 
 
