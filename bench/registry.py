@@ -14,7 +14,7 @@ it. Two distributions registering one name is an error naming both.
 For trying a plug-in without packaging it, ``BENCH_PLUGINS`` adds entries from the
 environment (worker processes inherit it)::
 
-    BENCH_PLUGINS="method:my-method=my_module:MyMethod,model:blob=my_module:BLOB"
+    BENCH_PLUGINS="method:my-method=my_module:MyMethod,metric:gap=my_module:GAP"
 """
 
 from __future__ import annotations

@@ -22,7 +22,9 @@ The :class:`~bench.metric.Metric` constants :data:`HAUSDORFF_MEAN` and
 :data:`HAUSDORFF_MAX` are called as ``compute(original, simplified, ctx)`` with ``ctx`` a
 dict that may hold ``"hausdorff_samples"`` (int) or a ``"protocol"`` whose
 ``hausdorff_samples`` is used; the result of :func:`hausdorff` is cached in it under
-``"hausdorff"``, so both metrics share one computation.
+``"hausdorff"``, so both metrics share one computation. They need ``"hausdorff"``
+(:data:`bench.metric.NEEDS`): :func:`metrics.protocol.evaluate` puts that result in
+``ctx`` before any metric runs, so the distances are sampled once per evaluation.
 """
 
 from __future__ import annotations
@@ -281,7 +283,9 @@ def _compute_max(original, simplified, ctx=None) -> float:
 
 HAUSDORFF_MEAN = Metric("hausdorff_mean", "fraction of bbox diagonal", False,
                         "Metro mean surface distance, average of both directions",
-                        _compute_mean, requires={"pymeshlab": "pymeshlab>=2023.12"})
+                        _compute_mean, requires={"pymeshlab": "pymeshlab>=2023.12"},
+                        needs={"hausdorff"})
 HAUSDORFF_MAX = Metric("hausdorff_max", "fraction of bbox diagonal", False,
                        "two-sided Hausdorff distance (Metro maximum of both directions)",
-                       _compute_max, requires={"pymeshlab": "pymeshlab>=2023.12"})
+                       _compute_max, requires={"pymeshlab": "pymeshlab>=2023.12"},
+                       needs={"hausdorff"})

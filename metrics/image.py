@@ -11,15 +11,16 @@ simplified mesh's, as uint8 RGB arrays of shape (V, H, W, 3):
   package), by default on the six views of :data:`FLIP_VIEWS` because it costs far more
   than the other two.
 
-The :class:`~bench.metric.Metric` constants at the bottom are called as
-``compute(original, simplified, ctx)`` with ``ctx`` a dict that may hold:
+The :class:`~bench.metric.Metric` constants at the bottom need ``"images"``: they are
+called as ``compute(original, simplified, ctx)`` with ``ctx`` a dict holding
 
 - ``"original_images"``, ``"simplified_images"``: ndarray of shape (24, H, W, 3) uint8,
-  the protocol views; rendered with :mod:`metrics.protocol` when absent and stored back
-  in ``ctx``, so the next metric reuses them;
-- ``"protocol"``: the :class:`metrics.protocol.Protocol` to render with, whose
-  ``flip_views`` ("subset" or "all") FLIP follows;
-- ``"flip_views"``: a ``views`` argument for :func:`flip_mean`, overriding the protocol.
+  the protocol views, which :func:`metrics.protocol.evaluate` renders once for all
+  metrics (this module renders nothing; a ``ctx`` without them is a ValueError);
+- optionally ``"protocol"``, whose ``flip_views`` ("subset" or "all") FLIP follows, and
+  ``"flip_views"``, a ``views`` argument for :func:`flip_mean` overriding the protocol.
+
+Each returns a :class:`~bench.metric.Value`: the scalar with its per-view values.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bench.metric import Metric
+from bench.metric import Metric, Value
 from metrics.shading import LUMA_WEIGHTS, luminance  # re-exported: callers of the metrics use them
 
 __all__ = ["luminance", "d_rms", "ssim_mean", "flip_mean", "FLIP_VIEWS", "FLIP_PPD",
@@ -242,43 +243,41 @@ def _resolve_views(views, n_views: int) -> list[int]:
 
 # -- registered metrics ------------------------------------------------------------------
 
-def _images(original, simplified, ctx) -> tuple[np.ndarray, np.ndarray]:
-    """The two meshes' protocol images from ``ctx`` (see the module docstring),
-    rendering and storing any that are missing."""
-    ctx = {} if ctx is None else ctx
-    if "original_images" not in ctx or "simplified_images" not in ctx:
-        from metrics.protocol import Protocol, original_images, render_views
-
-        protocol = ctx.get("protocol") or Protocol()
-        if "original_images" not in ctx:
-            ctx["original_images"] = original_images(original, protocol)
-        if "simplified_images" not in ctx:
-            ctx["simplified_images"] = render_views(simplified, original, protocol)
+def _images(ctx) -> tuple[np.ndarray, np.ndarray]:
+    """The two meshes' protocol images from ``ctx`` (see the module docstring). This
+    module only compares images; rendering them is the protocol's job."""
+    missing = [k for k in ("original_images", "simplified_images") if k not in (ctx or {})]
+    if missing:
+        raise ValueError(f"ctx has no {' and no '.join(missing)}; image metrics compare the "
+                         "protocol images, which metrics.protocol.evaluate renders (or pass "
+                         "them in ctx yourself)")
     return ctx["original_images"], ctx["simplified_images"]
 
 
-def _compute_d_rms(original, simplified, ctx=None) -> float:
-    return d_rms(*_images(original, simplified, ctx))[0]
+def _compute_d_rms(original, simplified, ctx=None) -> Value:
+    return Value(*d_rms(*_images(ctx)))
 
 
-def _compute_ssim(original, simplified, ctx=None) -> float:
-    return ssim_mean(*_images(original, simplified, ctx))[0]
+def _compute_ssim(original, simplified, ctx=None) -> Value:
+    return Value(*ssim_mean(*_images(ctx)))
 
 
-def _compute_flip(original, simplified, ctx=None) -> float:
+def _compute_flip(original, simplified, ctx=None) -> Value:
     ctx = {} if ctx is None else ctx
     views = ctx.get("flip_views")
     if views is None and getattr(ctx.get("protocol"), "flip_views", "subset") == "all":
         views = "all"
-    return flip_mean(*_images(original, simplified, ctx), views=views)[0]
+    value, per_view, _ = flip_mean(*_images(ctx), views=views)
+    return Value(value, per_view)
 
 
 D_RMS = Metric("d_rms", "luminance (0-255)", False,
                "RMS luminance difference over the 24 protocol views (L&T 2000, eq. 2)",
-               _compute_d_rms)
+               _compute_d_rms, needs={"images"})
 SSIM = Metric("ssim", "", True,
               "structural similarity of luminance, mean over the 24 views (Wang et al. 2004)",
-              _compute_ssim, requires={"skimage": "scikit-image>=0.22"})
+              _compute_ssim, requires={"skimage": "scikit-image>=0.22"}, needs={"images"})
 FLIP = Metric("flip", "", False,
               "FLIP perceptual difference, mean over the FLIP_VIEWS subset of views",
-              _compute_flip, requires={"flip_evaluator": "flip-evaluator>=1.2"})
+              _compute_flip, requires={"flip_evaluator": "flip-evaluator>=1.2"},
+              needs={"images"})

@@ -1,6 +1,10 @@
 """The evaluation protocol in one place (Lindstrom & Turk 2000, §3.2 and §5.1).
 
-:func:`evaluate` measures a simplified mesh against its original:
+:func:`evaluate` measures a simplified mesh against its original with every metric
+registered under ``bench.metrics`` (built-in and third-party alike: :mod:`bench.metric`).
+It computes the shared inputs once — the images, the Metro distances, the silhouette
+histogram, the counts — and hands each metric those it declares in ``needs``. The
+built-in metrics make up the protocol:
 
 1. images: the 24 small-rhombicuboctahedron views of the ORIGINAL's bounding sphere at
    512² with 4× MSAA, 50 % gray background, headlight, ``flat`` or ``gouraud`` shading
@@ -13,7 +17,10 @@
    dodecahedron views, and its mean ⟨x⟩ (Figure 7);
 5. topology: faces, render and welded vertices, boundary edges, seam cracks;
 6. model-specific metrics where the original's metadata defines them
-   (:func:`model_metrics`: the share of faces on the exterior, §5.2).
+   (``exterior_share``, §5.2; :func:`model_metrics`).
+
+Rendering lives here (:func:`render_views`, :func:`original_images`); the metric modules
+only compare what they are given, so none of them imports this one.
 
 Bump :data:`PROTOCOL_VERSION` whenever any of this changes a number; results of
 different protocol versions are never compared.
@@ -21,6 +28,8 @@ different protocol versions are never compared.
 
 from __future__ import annotations
 
+import math
+import numbers
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -31,8 +40,8 @@ import numpy as np
 
 from bench.mesh import Mesh
 
-__all__ = ["PROTOCOL_VERSION", "Protocol", "Evaluation", "evaluate", "model_metrics",
-           "original_images", "cache_dir"]
+__all__ = ["PROTOCOL_VERSION", "Protocol", "Evaluation", "evaluate", "registered_metrics",
+           "model_metrics", "original_images", "render_views", "render_per_view", "cache_dir"]
 
 PROTOCOL_VERSION = "1"
 
@@ -67,6 +76,8 @@ class Evaluation:
     silhouette_histogram: list = field(default_factory=list)
     seconds: dict = field(default_factory=dict)
     images: np.ndarray | None = None
+    #: metric name -> why it has no value (it raised, or is unavailable)
+    errors: dict = field(default_factory=dict)
 
 
 def cache_dir() -> Path:
@@ -140,10 +151,104 @@ def model_metrics(original: Mesh, simplified: Mesh) -> dict:
     return {} if np.isnan(share) else {"exterior_share": share}
 
 
+def registered_metrics() -> tuple[list[tuple[str, object]], dict[str, str]]:
+    """The available registered metrics as (name, Metric) in name order, and the
+    unavailable ones as name -> why (with the fix)."""
+    from bench.registry import registry
+
+    usable, problems = [], {}
+    for entry in registry("metric"):
+        if entry.available:
+            usable.append((entry.name, entry.load()))
+        else:
+            problems[entry.name] = f"unavailable: {entry.problem}"
+    return usable, problems
+
+
+#: Shared inputs the record itself carries (sheet images and per-view values, the Metro
+#: distances both ways, the silhouette histogram): computed whatever the metrics need.
+_RECORDED_INPUTS = frozenset({"images", "hausdorff", "silhouette"})
+
+
+def _shared_inputs(needs: set, original: Mesh, simplified: Mesh, protocol: Protocol,
+                   reference_images, view_meshes, seconds: dict) -> dict:
+    """``ctx`` with each input of ``needs`` (keys of :data:`bench.metric.NEEDS`) computed
+    once, and its time in ``seconds``."""
+    from metrics import geometry, silhouette, topology
+    from metrics.views import silhouette_cameras
+
+    ctx = {"protocol": protocol}
+    if "images" in needs:
+        t = time.perf_counter()
+        ref = reference_images if reference_images is not None else \
+            original_images(original, protocol)
+        seconds["original_images"] = time.perf_counter() - t
+        t = time.perf_counter()
+        imgs = (render_views(simplified, original, protocol) if view_meshes is None
+                else render_per_view(view_meshes, original, protocol))
+        seconds["render"] = time.perf_counter() - t
+        ctx["original_images"], ctx["simplified_images"] = _read_only(ref), _read_only(imgs)
+    if "view_meshes" in needs:
+        ctx["view_meshes"] = view_meshes
+    if "hausdorff" in needs:
+        t = time.perf_counter()
+        ctx["hausdorff"] = geometry.hausdorff(original, simplified,
+                                              samples=protocol.hausdorff_samples)
+        seconds["hausdorff"] = time.perf_counter() - t
+    if "silhouette" in needs:
+        t = time.perf_counter()
+        eyes = np.array([c.eye for c in silhouette_cameras(original)])
+        ctx["silhouette"] = silhouette.silhouette_histogram(simplified, eyes)
+        seconds["silhouette"] = time.perf_counter() - t
+    if "topology" in needs:
+        t = time.perf_counter()
+        ctx["topology"] = topology.counts(original, simplified)
+        seconds["topology"] = time.perf_counter() - t
+    return ctx
+
+
+def _read_only(images: np.ndarray) -> np.ndarray:
+    """A read-only view: one metric cannot change the images the next one sees."""
+    view = images.view()
+    view.flags.writeable = False
+    return view
+
+
+def _recorded(value) -> tuple[float | int | None, tuple | None]:
+    """A metric's return value as (scalar for the record, per-view values or None);
+    None and NaN mean undefined (left out). Raises TypeError for a non-number."""
+    if value is None:
+        return None, None
+    per_view = getattr(value, "per_view", None) or None
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        return int(value), per_view
+    if not isinstance(value, numbers.Real):
+        raise TypeError(f"returned {type(value).__name__} {value!r}, not a number")
+    scalar = float(value)
+    return (None if math.isnan(scalar) else scalar), per_view
+
+
 def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
              reference_images: np.ndarray | None = None,
-             view_meshes: list[Mesh] | None = None) -> Evaluation:
-    """Measure ``simplified`` against ``original`` under ``protocol``.
+             view_meshes: list[Mesh] | None = None, metrics=None) -> Evaluation:
+    """Measure ``simplified`` against ``original`` under ``protocol`` with every
+    registered metric.
+
+    The flow: (1) gather the metrics (the available entries of the ``bench.metrics``
+    registry, built-in and third-party alike; an unavailable one is an error of that
+    metric); (2) compute once each shared input that a metric needs
+    (:data:`bench.metric.NEEDS`) or the record carries — render the 24 views, sample
+    the Hausdorff distances, count silhouettes and topology; (3) call each metric's
+    ``compute(original, simplified, ctx)`` with those inputs in ``ctx``; its value goes
+    to ``metrics[name]`` and, for a :class:`~bench.metric.Value`, its per-view values to
+    ``per_view[name]``.
+
+    A metric that raises, returns something that is not a number or is unavailable
+    (a missing backend) does not fail the evaluation: its value is missing and
+    ``errors[name]`` says why; ``bench check`` marks it ``newly failing`` where the
+    baseline has a value. A metric returning None or NaN is undefined for this model and
+    left out, with no error. A shared input that fails (the renderer, Metro) fails the
+    whole evaluation, as it is the protocol itself.
 
     Parameters
     ----------
@@ -155,42 +260,42 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
         A view-dependent method's per-view results: view i is imaged with
         ``view_meshes[i]``; geometry, silhouettes and topology still use ``simplified``
         (the method's view-independent result).
+    metrics : iterable of (str, Metric), optional
+        The metrics to compute instead of the registered ones.
+
+    Returns
+    -------
+    Evaluation
+        ``metrics`` also holds the Metro figures of :func:`metrics.geometry.hausdorff`
+        (``forward_mean`` ... ``symmetric_max``), which are not registered metrics.
     """
-    from metrics import geometry, image, silhouette, topology
-    from metrics.views import silhouette_cameras
+    errors = {}
+    if metrics is None:
+        metrics, errors = registered_metrics()
+    metrics = list(metrics)
 
     seconds = {}
-    t = time.perf_counter()
-    ref = reference_images if reference_images is not None else original_images(original, protocol)
-    seconds["original_images"] = time.perf_counter() - t
+    needs = set(_RECORDED_INPUTS)
+    for _, metric in metrics:
+        needs |= set(getattr(metric, "needs", ()))
+    ctx = _shared_inputs(needs, original, simplified, protocol, reference_images,
+                         view_meshes, seconds)
 
-    t = time.perf_counter()
-    imgs = (render_views(simplified, original, protocol) if view_meshes is None
-            else render_per_view(view_meshes, original, protocol))
-    seconds["render"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    d, d_views = image.d_rms(ref, imgs)
-    s, s_views = image.ssim_mean(ref, imgs)
-    seconds["d_rms_ssim"] = time.perf_counter() - t
-
-    flip_views = None if protocol.flip_views == "subset" else "all"
-    f, f_views, seconds["flip"] = image.flip_mean(ref, imgs, views=flip_views)
-
-    t = time.perf_counter()
-    h = geometry.hausdorff(original, simplified, samples=protocol.hausdorff_samples)
-    seconds["hausdorff"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    eyes = np.array([c.eye for c in silhouette_cameras(original)])
-    hist, mean = silhouette.silhouette_histogram(simplified, eyes)
-    seconds["silhouette"] = time.perf_counter() - t
-
-    metrics = {"d_rms": d, "ssim": s, "flip": f, **h, "hausdorff_max": h["symmetric_max"],
-               "silhouette_mean": mean}
-    metrics.update(topology.counts(original, simplified))
-    metrics.update(model_metrics(original, simplified))
-    return Evaluation(metrics=metrics,
-                      per_view={"d_rms": d_views.tolist(), "ssim": s_views.tolist(),
-                                "flip": f_views.tolist()},
-                      silhouette_histogram=list(map(float, hist)), seconds=seconds, images=imgs)
+    values, per_view = dict(ctx["hausdorff"]), {}
+    for name, metric in metrics:
+        t = time.perf_counter()
+        try:
+            value, views = _recorded(metric.compute(original, simplified, ctx))
+        except Exception as exc:  # one broken metric must not lose the job's other figures
+            errors[name] = f"{type(exc).__name__}: {exc}"
+            values.pop(name, None)
+            continue
+        finally:
+            seconds[f"metric:{name}"] = time.perf_counter() - t
+        if value is not None:
+            values[name] = value
+        if views is not None:
+            per_view[name] = list(views)
+    return Evaluation(metrics=values, per_view=per_view,
+                      silhouette_histogram=list(map(float, ctx["silhouette"].histogram)),
+                      seconds=seconds, images=ctx["simplified_images"], errors=errors)

@@ -23,8 +23,9 @@ The rule for non-manifold edges extends the manifold one: a fold between a visib
 hidden sheet is drawn as an outline either way.
 
 The :class:`~bench.metric.Metric` :data:`SILHOUETTE_MEAN` is called as
-``compute(original, simplified, ctx)`` with ``ctx`` a dict that may hold
-``"silhouette_eyes"``, ndarray of shape (V, 3); without it the eyes are the protocol's 20
+``compute(original, simplified, ctx)`` with ``ctx`` a dict that may hold ``"silhouette"``
+(the protocol's :class:`SilhouetteHistogram` of the simplified mesh, which it then reads)
+or ``"silhouette_eyes"``, ndarray of shape (V, 3); without it the eyes are the protocol's 20
 dodecahedron cameras fitted to the original (:func:`metrics.views.silhouette_cameras`).
 """
 
@@ -157,9 +158,13 @@ def _check(mesh, eyes) -> np.ndarray:
 # -- registered metric -------------------------------------------------------------------
 
 def _compute_mean(original: Mesh, simplified: Mesh, ctx=None) -> float:
-    """⟨x⟩ of ``simplified`` from the eyes in ``ctx["silhouette_eyes"]`` (shape (V, 3)),
-    or else the protocol's 20 dodecahedron cameras fitted to ``original``."""
-    eyes = (ctx or {}).get("silhouette_eyes")
+    """⟨x⟩ of ``simplified``: from ``ctx["silhouette"]`` (the protocol's histogram) when
+    given, else from the eyes in ``ctx["silhouette_eyes"]`` (shape (V, 3)), or else the
+    protocol's 20 dodecahedron cameras fitted to ``original``."""
+    ctx = ctx or {}
+    if "silhouette" in ctx:
+        return ctx["silhouette"].mean
+    eyes = ctx.get("silhouette_eyes")
     if eyes is None:
         from metrics.views import silhouette_cameras
 
@@ -169,4 +174,5 @@ def _compute_mean(original: Mesh, simplified: Mesh, ctx=None) -> float:
 
 SILHOUETTE_MEAN = Metric("silhouette_mean", "views", None,
                          "expected number of the 20 dodecahedron views in which an edge is "
-                         "on the silhouette (Figure 7's ⟨x⟩)", _compute_mean)
+                         "on the silhouette (Figure 7's ⟨x⟩)", _compute_mean,
+                         needs={"silhouette"})

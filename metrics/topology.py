@@ -63,21 +63,30 @@ def counts(original: Mesh, simplified: Mesh) -> dict:
 
 
 def _count(key: str):
-    return lambda original, simplified, ctx=None: float(counts(original, simplified)[key])
+    """``compute`` of the count ``key``: read from ``ctx["topology"]`` (the protocol's
+    :func:`counts`, computed once for all six metrics) or counted when absent."""
+    def compute(original: Mesh, simplified: Mesh, ctx=None) -> int:
+        ctx = ctx or {}
+        found = ctx["topology"] if "topology" in ctx else counts(original, simplified)
+        return int(found[key])
+
+    return compute
 
 
-FACES = Metric("faces", "faces", None, "triangles in the result", _count("faces"))
+FACES = Metric("faces", "faces", None, "triangles in the result", _count("faces"),
+               needs={"topology"})
 RENDER_VERTICES = Metric("render_vertices", "vertices", None,
                          "vertices as a GPU stores them (one per distinct attribute set)",
-                         _count("render_vertices"))
+                         _count("render_vertices"), needs={"topology"})
 WELDED_VERTICES = Metric("welded_vertices", "vertices", None,
-                         "vertices with equal positions merged", _count("welded_vertices"))
+                         "vertices with equal positions merged", _count("welded_vertices"),
+                         needs={"topology"})
 BOUNDARY_EDGES = Metric("boundary_edges", "edges", False,
                         "welded edges with one incident face (holes and cracks show here)",
-                        _count("boundary_edges"))
+                        _count("boundary_edges"), needs={"topology"})
 SEAM_CRACKS = Metric("seam_cracks", "edges", False,
                      "boundary edges of the result that opened along the original's seams",
-                     _count("seam_cracks"))
+                     _count("seam_cracks"), needs={"topology"})
 NON_MANIFOLD_EDGES = Metric("non_manifold_edges", "edges", False,
                             "welded edges with more than two incident faces",
-                            _count("non_manifold_edges"))
+                            _count("non_manifold_edges"), needs={"topology"})

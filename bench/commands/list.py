@@ -49,7 +49,9 @@ def _row(kind: str, entry) -> dict:
             row.update(version=obj.version, view="dependent" if obj.view_dependent else "",
                        detail=obj.summary)
         elif kind == "metric":
-            row.update(unit=obj.unit, direction=obj.direction, detail=obj.summary)
+            needs = sorted(set(getattr(obj, "needs", ())) - {"meshes"}) or ["meshes"]
+            row.update(unit=obj.unit, direction=obj.direction, needs=",".join(needs),
+                       detail=obj.summary)
         else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

@@ -8,6 +8,12 @@ Marks: ``worse``, ``better``, ``same``, ``newly failing`` (baseline ok, now fail
 ``fixed`` (baseline failed, now ok), ``not comparable`` (method or protocol version
 changed, so numbers cannot be compared), ``missing`` (in the baseline, not in the run),
 ``new`` (in the run only). ``worse``, ``newly failing`` and ``missing`` fail the check.
+
+A metric registered by a third-party package is checked like a built-in one, by its own
+``higher_is_better``. A metric that raised in an ok job (its value missing, its error in
+the record's ``metric_errors``) is ``newly failing`` where the baseline has a value.
+Metrics of the run that the baseline lacks (a newly registered metric) are not compared:
+make a new baseline to gate them.
 """
 
 from __future__ import annotations
@@ -66,6 +72,9 @@ def make_baseline(records: list[dict]) -> dict:
             "protocol_version": job["protocol"]["version"],
             "metrics": {k: metrics[k] for k in directions if _finite(metrics.get(k))},
         }
+        errors = {k: v for k, v in (r.get("metric_errors") or {}).items() if k in directions}
+        if errors:  # metrics that raised in an ok job (metrics.protocol.evaluate)
+            entries[key]["metric_errors"] = errors
     return {"schema": BASELINE_SCHEMA, "entries": dict(sorted(entries.items()))}
 
 
@@ -122,6 +131,10 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
             continue
         for metric, before in old["metrics"].items():
             after = new["metrics"].get(metric)
+            if after is None and metric in new.get("metric_errors", {}):
+                error = new["metric_errors"][metric].splitlines()[0]
+                rows.append(Row(key, metric, before, error[:60], "newly failing"))
+                continue
             if after is None or metric not in directions:
                 rows.append(Row(key, metric, before, after, "not comparable"))
                 continue

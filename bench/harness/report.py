@@ -111,6 +111,11 @@ def _cell(value) -> str:
     return html.escape(str(value))
 
 
+def _fixed(value) -> str:
+    """``value`` with three decimals; a dash when missing (a metric that raised)."""
+    return "—" if value is None else f"{value:.3f}"
+
+
 def _png(fig) -> str:
     import matplotlib.pyplot as plt
 
@@ -234,15 +239,16 @@ def _sheets(run_dir: Path, records: list[dict]) -> str:
         for v in SHEET_VIEWS:
             o, s = orig_dir / f"view{v:02d}.png", run_dir / "images" / key / f"view{v:02d}.png"
             rows["original"].append((f"original, view {v}", _image_uri(o)))
-            rows["result"].append((f"{r['metrics']['faces']} faces", _image_uri(s)))
-            rows["difference"].append((f"|ΔY|×4, d_RMS {r['per_view']['d_rms'][v]:.1f}",
-                                       _difference_uri(o, s)))
+            rows["result"].append((f"{r['metrics'].get('faces')} faces", _image_uri(s)))
+            d_views = r.get("per_view", {}).get("d_rms")
+            rows["difference"].append((f"|ΔY|×4, d_RMS {d_views[v]:.1f}" if d_views else
+                                       "|ΔY|×4", _difference_uri(o, s)))
         figs = [f"<figure><img src='{uri}' alt='{html.escape(caption)}'>"
                 f"<figcaption>{html.escape(caption)}</figcaption></figure>"
                 for row in rows.values() for caption, uri in row if uri]
         evaluated = f", evaluated {shading}" if several else ""
         out.append(f"<h3>{html.escape(job['label'])} at {job['target_faces']} faces{evaluated}: "
-                   f"d_RMS {r['metrics']['d_rms']:.3f}</h3><div class='sheet'>{''.join(figs)}</div>")
+                   f"d_RMS {_fixed(r['metrics'].get('d_rms'))}</h3><div class='sheet'>{''.join(figs)}</div>")
         for name in r.get("artifacts") or []:  # images the method asked to show
             uri = _image_uri(run_dir / name)
             if uri:
@@ -270,9 +276,21 @@ def _timing(records: list[dict]) -> str:
 
 
 def _failures(records: list[dict]) -> str:
+    """Failed and skipped jobs with their errors, then metrics that raised in ok jobs
+    (whose other figures stand)."""
     bad = [r for r in records if r["status"] != "ok"]
-    if not bad:
+    partial = [r for r in records if r["status"] == "ok" and r.get("metric_errors")]
+    if not bad and not partial:
         return "<p>None.</p>"
-    return "".join(f"<h3 class='{r['status']}'>{html.escape(r['job']['model'])} / "
-                   f"{html.escape(r['job']['label'])} / {r['job']['target_faces']}: {r['status']}</h3>"
-                   f"<pre>{html.escape(str(r.get('error')))}</pre>" for r in bad)
+    out = [f"<h3 class='{r['status']}'>{_job_title(r)}: {r['status']}</h3>"
+           f"<pre>{html.escape(str(r.get('error')))}</pre>" for r in bad]
+    out += [f"<h3>{_job_title(r)}: metric {html.escape(name)} failed</h3>"
+            f"<pre>{html.escape(str(error))}</pre>"
+            for r in partial for name, error in r["metric_errors"].items()]
+    return "".join(out)
+
+
+def _job_title(record: dict) -> str:
+    job = record["job"]
+    return (f"{html.escape(job['model'])} / {html.escape(job['label'])} / "
+            f"{job['target_faces']}")

@@ -7,6 +7,7 @@ Schema (``schema`` = :data:`SCHEMA_VERSION`)::
      "model": {"name", "hash", "faces", "render_vertices", "welded_vertices"},
      "method": {"name", "version", "view_dependent"},
      "metrics": {...}, "per_view": {...}, "silhouette_histogram": [...],
+     "metric_errors": {name: error} (only when a metric raised; its value is missing),
      "stats": {...}, "seconds": {...}, "stop_reason": str | null,
      "environment": {"versions", "git_commit", "machine"}, "created": ISO time}
 
@@ -25,13 +26,15 @@ from pathlib import Path
 from bench.errors import InputError
 
 __all__ = ["SCHEMA_VERSION", "CSV_COLUMNS", "shading_label", "write_record", "load_record",
-           "load_records", "records_table", "write_table"]
+           "load_records", "metric_columns", "records_table", "write_table"]
 
 SCHEMA_VERSION = 1
 
-#: Columns of results.csv, in order (DESIGN "Results"; issue "runner"). ``shading`` is
-#: the evaluation shading (:func:`shading_label`); ``exterior_share`` is empty for models
-#: that do not classify their faces (:mod:`metrics.interior`).
+#: The leading columns of results.csv, in order (DESIGN "Results"; issue "runner").
+#: ``shading`` is the evaluation shading (:func:`shading_label`); ``exterior_share`` is
+#: empty for models that do not classify their faces (:mod:`metrics.interior`). Every
+#: other registered metric that some record has follows ``status``, by name
+#: (:func:`metric_columns`); a cell is empty where a record lacks the metric.
 CSV_COLUMNS = ["model", "method", "shading", "target_faces", "faces", "d_rms", "ssim", "flip",
                "hausdorff_mean", "hausdorff_max", "silhouette_mean", "boundary_edges",
                "seam_cracks", "exterior_share", "seconds", "tri_per_s", "peak_mb", "status"]
@@ -87,10 +90,22 @@ def load_records(run_dir: Path) -> list[dict]:
                                           shading_label(r["job"]["protocol"])))
 
 
+def metric_columns(records: list[dict]) -> list[str]:
+    """Registered metrics outside :data:`CSV_COLUMNS` that some record has, by name:
+    the columns results.csv and the report add after ``status``."""
+    from bench.registry import registry
+
+    found = set().union(*((r.get("metrics") or {}).keys() for r in records))
+    return [name for name in registry("metric").names()
+            if name in found and name not in CSV_COLUMNS]
+
+
 def records_table(records: list[dict]):
-    """A pandas DataFrame with :data:`CSV_COLUMNS` (one row per record)."""
+    """A pandas DataFrame with :data:`CSV_COLUMNS` and then :func:`metric_columns`
+    (one row per record)."""
     import pandas as pd
 
+    extra = metric_columns(records)
     rows = []
     for r in records:
         m, job, stats = r.get("metrics") or {}, r["job"], r.get("stats") or {}
@@ -103,8 +118,9 @@ def records_table(records: list[dict]):
             "boundary_edges": m.get("boundary_edges"), "seam_cracks": m.get("seam_cracks"),
             "exterior_share": m.get("exterior_share"), "seconds": stats.get("wall_seconds"),
             "tri_per_s": stats.get("tri_per_s"), "peak_mb": stats.get("peak_mb"), "status": r["status"],
+            **{name: m.get(name) for name in extra},
         })
-    return pd.DataFrame(rows, columns=CSV_COLUMNS)
+    return pd.DataFrame(rows, columns=CSV_COLUMNS + extra)
 
 
 def write_table(run_dir: Path, records: list[dict]) -> Path:

@@ -154,6 +154,8 @@ def _run_job(job: Job, run_dir: Path, record: dict) -> None:
                   view_meshes=view_meshes)
     record.update(metrics=ev.metrics, per_view=ev.per_view, seconds=ev.seconds,
                   silhouette_histogram=ev.silhouette_histogram, status="ok")
+    if ev.errors:  # metrics that raised: the job is ok, those values are missing
+        record["metric_errors"] = ev.errors
     _save_sheet_images(run_dir, job, mesh, reference, ev.images)
 
 
