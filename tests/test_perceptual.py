@@ -166,11 +166,15 @@ CAMERA = Camera(eye=[-1.5, 0.0, 5.0], target=[-1.5, 0.0, 0.0], up=[0, 1, 0], fov
                 near=0.1, far=20.0)
 
 
-@pytest.fixture(scope="module")
-def patches():
-    mesh = _three_patches()
+def _with_bounds(mesh):
+    """(mesh, its MT, the MT's node bounds)."""
     mt = build_mt(mesh)
     return mesh, mt, preprocess(mt)
+
+
+@pytest.fixture(scope="module")
+def patches():
+    return _with_bounds(_three_patches())
 
 
 def test_spheres_and_cones_bound_the_original(patches):
@@ -341,9 +345,7 @@ def _surface_at(mesh, q):
 
 @pytest.fixture(scope="module")
 def uv_grid():
-    mesh = _uv_grid()
-    mt = build_mt(mesh)
-    return mesh, mt, preprocess(mt)
+    return _with_bounds(_uv_grid())
 
 
 def test_deviation_is_the_parametric_distance_at_the_original_corners(uv_grid):
