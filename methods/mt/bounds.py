@@ -117,12 +117,20 @@ def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
     else:
         lum = np.full((m, 2), float(albedo))
     tris = mt.triangles.astype(np.int64)
+    # every stage reads the same two lists, built once: the node's own triangles ...
     start, split, own = node_triangles(mt)
+    # ... and the original triangles mapped to it (the collapse history, handed down)
     fp_start, fp = _footprints(tris, P, m, start, split, own)
+    # §2.2, §5.3: the sphere's nearest point projects the deviation to the screen and
+    # culls nodes outside the view
     center, radius = _spheres(tris, P, fp_start, fp, start, own)
+    # §5.3: may the node lie on the silhouette (original and simplified normals)
     sax, sang = _silhouette_cones(tris, P, normals, 0.5 * area2, fp_start, fp, start, own)
+    # §5.4: the lit shading's range, from the original's vertex normals
     hax, hang = _shading_cones(vnormals, fp_start, fp)
+    # §5.2: the contrast the node can induce, from the texels it covers
     lrange = _luminance_ranges(lum, fp_start, fp)
+    # §2.2: how far the node moves the surface (monotone up the MT)
     dev = _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
                       mt.uv is not None, fp_start, fp, start, split, own,
                       mt.child_start.astype(np.int64), mt.children.astype(np.int64))
