@@ -26,10 +26,12 @@ The pipeline of Algorithm 1:
    vertices are simply translated to cap the holes"). A fake vertex is needed only by
    index-only multiresolution schemes; here no seam can open, because the welded
    topology is never split (the geometric ``seam_cracks`` metric can still count a
-   long chord of a simplified open boundary that passes near a seam). The statistics
-   count every
-   collapse (real), those that collapsed a twin, and those that translated stranded
-   duplicates (where the paper would create a fake edge);
+   long chord of a simplified open boundary that passes near a seam). Every collapse
+   is of a real edge, so the statistics count the collapses (``collapses``), those
+   that collapsed a twin with it (``twin_collapses``), those that translated stranded
+   duplicates (``fake_collapses``: where the paper would add a fake edge) and the
+   duplicates so translated (``translated_duplicates``); no fake vertex is ever made,
+   so none is counted;
 4. texture-coordinate correction (§3, the α, β equations; ``uv_correction``): a
    duplicate whose position changes takes the UV that the texture map of one of its own
    triangles gives the new position (:func:`methods.engine.barycentric_uv`);
@@ -301,13 +303,11 @@ class EntropyTwin(Method):
             out = rebuild_normals(out, p.normals_angle)
         s = result.stats
         stats.update({
-            "collapses": s["collapses"], "real_collapses": s["collapses"],
-            "twin_collapses": s["twin_collapses"],
+            "collapses": s["collapses"], "twin_collapses": s["twin_collapses"],
             # where the paper would add a fake edge: duplicates translated onto the kept
             # vertex (see the module notes)
             "fake_collapses": s["stranded_collapses"],
             "translated_duplicates": s["stranded_wedges"],
-            "fake_vertices": 0,
             "cost_evaluations": s["cost_evaluations"],
             "entropy_evaluations": s["image_evaluations"],
             "rejections": s["rejections"],

@@ -34,6 +34,25 @@ TET_POSITIONS = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.
 TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int32)
 
 
+def icosphere(subdivisions: int = 2, name: str = "icosphere"):
+    """trimesh's unit icosphere as a Mesh (20 * 4^subdivisions faces, closed)."""
+    import trimesh
+
+    from bench.mesh import Mesh
+
+    ico = trimesh.creation.icosphere(subdivisions)
+    return Mesh(np.asarray(ico.vertices), np.asarray(ico.faces).astype(np.int32), name=name)
+
+
+def blob(subdivisions: int = 2, seed: int = 1):
+    """An icosphere with its radius jittered by 8 % per vertex (seeded): closed, no
+    duplicated vertices, and no two edges alike, so costs have no ties."""
+    ico = icosphere(subdivisions)
+    rng = np.random.default_rng(seed)
+    positions = ico.positions * (1 + 0.08 * rng.standard_normal((ico.n_vertices, 1)))
+    return ico.replace(positions=positions, name="blob")
+
+
 def write(path: Path, text: str) -> Path:
     """Write dedented ``text`` to ``path`` and return the path."""
     path.write_text(textwrap.dedent(text).lstrip("\n"))

@@ -9,6 +9,8 @@ Each against an independent computation or a count made by hand:
   :func:`methods.imaging.raster.face_id_buffers` render of the extracted mesh;
 * the cost of a collapse is the brute-force sum over views of |H_v after - H_v before|;
 * no seam opens on the crate, the two-material barrel and the textured bunny;
+* the twin, fake and translated collapses of Algorithm 2 on the crate, counted by hand
+  (a known collapse sequence) and by a NumPy replay of the collapse log;
 * the α, β texture-coordinate correction reproduces an affine texture map exactly.
 """
 
@@ -23,6 +25,7 @@ import trimesh
 from bench.errors import ParamError
 from bench.mesh import Mesh
 from bench.models.gamemodels import make_barrel, make_crate
+from conftest import blob
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh
 from methods.engine.wedges import barycentric_uv
@@ -35,13 +38,6 @@ from metrics.topology import seam_cracks
 RES = 48
 HALF_EDGE = Policy(placement="endpoints", quadric_weight=0.0, boundary_weight=0.0,
                    seam_rule=False, boundary_rule=True)
-
-
-def _blob(subdivisions=2, seed=1):
-    ico = trimesh.creation.icosphere(subdivisions)
-    rng = np.random.default_rng(seed)
-    positions = ico.vertices * (1 + 0.08 * rng.standard_normal((len(ico.vertices), 1)))
-    return Mesh(positions, ico.faces.astype(np.int32), name="blob")
 
 
 def _kernel_entropy(ids, background):
@@ -82,7 +78,7 @@ def _run(mesh, background, collapses, target=4):
 
 @pytest.mark.parametrize("background", [True, False])
 def test_incremental_entropy_equals_a_fresh_render(background):
-    mesh = _blob()
+    mesh = blob()
     term, result = _run(mesh, background, collapses=150)
     s = result.stats
     assert s["collapses"] == 150
@@ -101,7 +97,7 @@ def test_incremental_entropy_equals_a_fresh_render(background):
 
 @pytest.mark.parametrize("background", [True, False])
 def test_cost_is_the_sum_of_absolute_entropy_changes(background):
-    mesh = _blob()
+    mesh = blob()
     for k in (0, 9, 40):
         _, before = _run(mesh, background, collapses=k)
         _, after = _run(mesh, background, collapses=k + 1)
@@ -143,8 +139,12 @@ def test_no_seam_opens_on_game_meshes(make, target):
     summary = result.mesh.summary()
     assert summary["boundary_edges"] == 0 and summary["non_manifold_edges"] == 0
     assert seam_cracks(mesh, result.mesh) == 0
-    assert result.stats["twin_collapses"] > 0  # seam edges went with their twins
-    assert result.stats["real_collapses"] == result.stats["collapses"]
+    s = result.stats
+    assert s["twin_collapses"] > 0  # seam edges went with their twins
+    # each kind is a subset of the collapses, and a fake collapse translates at least
+    # one duplicate
+    assert s["twin_collapses"] <= s["collapses"] and s["fake_collapses"] <= s["collapses"]
+    assert s["fake_collapses"] <= s["translated_duplicates"]
 
 
 def test_no_seam_opens_on_the_textured_bunny(bunny_textured):
@@ -152,23 +152,170 @@ def test_no_seam_opens_on_the_textured_bunny(bunny_textured):
     assert result.mesh.n_faces in (999, 1000)
     assert seam_cracks(bunny_textured, result.mesh) == 0
     assert _boundary_follows_the_original(bunny_textured, result.mesh)
-    assert result.stats["fake_collapses"] > 0 and result.stats["fake_vertices"] == 0
+    s = result.stats
+    assert 0 < s["fake_collapses"] <= s["translated_duplicates"]
+    assert "fake_vertices" not in s and "real_collapses" not in s  # no constant stats
 
 
 def test_a_mesh_without_duplicates_has_no_twin_or_fake_collapses():
-    result = EntropyTwin(resolution=RES, normals_angle=-1).simplify(_blob(), 100)
+    result = EntropyTwin(resolution=RES, normals_angle=-1).simplify(blob(), 100)
     assert result.stats["twin_collapses"] == 0 and result.stats["fake_collapses"] == 0
     assert result.mesh.normals is None
     assert result.stats["presimplified_faces"] == 320  # below 20 x the target: untouched
 
 
 def test_large_meshes_are_presimplified_to_twenty_times_the_target():
-    mesh = _blob(3)  # 1,280 faces
+    mesh = blob(3)  # 1,280 faces
     result = EntropyTwin(resolution=RES).simplify(mesh, 40)
     assert result.stats["presimplified_faces"] in (799, 800)
     assert result.mesh.n_faces in (39, 40)
     off = EntropyTwin(resolution=RES, presimplify_faces=-1).simplify(mesh, 40)
     assert off.stats["presimplified_faces"] == 1280
+
+
+# -- twin and translated collapses, counted by hand --------------------------------------
+
+def _kinds_by_replay(mesh, log):
+    """Algorithm 2's kinds of every logged collapse, by replaying the log on the input's
+    faces in NumPy (an oracle for the engine's counters).
+
+    For a collapse of u into v: the faces holding both are removed, and each gives the
+    pair (u's wedge, v's wedge) in it; the collapse is a *twin* one when there are two
+    distinct pairs (the real edge and its twin). A wedge of u in a surviving face that
+    is no pair's first is *translated* onto v (a *fake* collapse in the paper's words).
+    Paired wedges of u become v's; the rest keep their identity.
+
+    Returns
+    -------
+    ndarray of shape (collapses, 3) int
+        Per collapse: twin (0/1), fake (0/1), translated wedges.
+    """
+    F = mesh.welded.faces.astype(np.int64).copy()
+    FW = mesh.faces.astype(np.int64).copy()
+    alive = np.ones(len(F), bool)
+    out = []
+    for k, (u, v) in enumerate(zip(log["removed"], log["kept"])):
+        has_u = alive & (F == u).any(axis=1)
+        both = has_u & (F == v).any(axis=1)
+        removed = log["removed_faces"][k]
+        assert set(removed[removed >= 0]) == set(np.flatnonzero(both))
+        pairs = {}
+        for f in np.flatnonzero(both):
+            pair = (FW[f][F[f] == u][0], FW[f][F[f] == v][0])
+            pairs.setdefault(pair, None)
+        to = {}
+        for a, b in pairs:
+            to.setdefault(a, b)
+        moved = np.flatnonzero(has_u & ~both)
+        translated = {FW[f][F[f] == u][0] for f in moved} - set(to)
+        out.append((int(len(pairs) >= 2), int(bool(translated)), len(translated)))
+        alive[both] = False
+        for f in moved:
+            e = np.flatnonzero(F[f] == u)[0]
+            F[f, e] = v
+            FW[f, e] = to.get(FW[f, e], FW[f, e])
+    return np.array(out, np.int64).reshape(-1, 3)
+
+
+#: make_crate(2), one corner of the box with its three faces unfolded (each box face a
+#: 2 x 2 grid and its own UV chart, so the box edges are seams)::
+#:
+#:              C-----m-----C
+#:              |     |     |       C  box corner: 3 render vertices (one per chart)
+#:              m-----o-----m  +z   m  box-edge midpoint: 2 (one per chart)
+#:              |     |     |       o  face centre: 1
+#:        C-----m-----C-----m-----C
+#:        |     |     |     |     |
+#:        m--o--m  -y |  +x m--o--m
+#:        |     |     |     |     |
+#:        C-----m-----C-----m-----C
+#:
+#: 8 corners, 12 midpoints, 6 centres: 26 welded and 54 render vertices, 48 faces.
+QUADRIC_HALF_EDGE = Policy(placement="endpoints", max_normal_rotation=180.0, seam_rule=False)
+
+
+def test_collapse_kinds_on_the_crate_by_hand():
+    """make_crate(2) to 10 faces by half-edge collapses under the plain quadric: 19
+    collapses, of which 13 twin, 1 fake, 1 duplicate translated.
+
+    The hand count. A centre's quadric holds one plane (its box face), a midpoint's the
+    two planes of its box edge, a corner's three; so the collapses of zero cost are a
+    centre into any neighbour (all in its chart) and a midpoint along its box edge into
+    a corner, and every other collapse costs more. The engine takes these 18 first, in
+    some order; each leaves the others' zero cost intact (48 - 2 * 18 = 12 faces: the
+    cube of make_crate(1)):
+
+    - a centre (1 wedge) into v: its faces are all in one chart, so one wedge pair, no
+      twin, and nothing left at u: (0, 0, 0), six times;
+    - a midpoint m into a corner along the box edge between charts A and B: the two
+      removed faces are one of A and one of B, so the pairs (m_A, C_A) and (m_B, C_B)
+      are distinct, a twin collapse; both of m's wedges are paired: (1, 0, 0), twelve
+      times.
+
+    The 19th is a corner u into a corner v along a box edge (it leaves one plane of u;
+    across a face diagonal it would leave two): a twin as above, and u's wedge on the
+    third box face, where v is not, has no partner and is translated: (1, 1, 1).
+    """
+    mesh = make_crate(2)
+    s = mesh.summary()
+    assert (s["faces"], s["welded_vertices"], s["render_vertices"]) == (48, 26, 54)
+    result = simplify_mesh(mesh, 10, QUADRIC_HALF_EDGE)
+    stats, log = result.stats, result.log
+    assert stats["collapses"] == 19 and result.mesh.n_faces == 10
+    assert (stats["twin_collapses"], stats["stranded_collapses"],
+            stats["stranded_wedges"]) == (13, 1, 1)
+    # which vertex went, by its place on the box: the count of its coordinates at +-1
+    on_box = (np.abs(mesh.welded.positions[log["removed"]]) == 1.0).sum(axis=1)
+    assert sorted(on_box[:18]) == [1] * 6 + [2] * 12 and on_box[18] == 3
+    assert np.all(log["cost"][:18] < 1e-12) and log["cost"][18] > 1e-6
+    kinds = _kinds_by_replay(mesh, log)
+    expected = {1: (0, 0, 0), 2: (1, 0, 0), 3: (1, 1, 1)}
+    assert [tuple(k) for k in kinds] == [expected[n] for n in on_box]
+
+
+@pytest.mark.parametrize("n,target", [(2, 6), (3, 30)])
+def test_engine_counts_collapse_kinds_as_the_replay_does(n, target):
+    """Down to a few faces the crate's corners collapse across faces too (fake collapses
+    with two translated wedges): the engine's counters equal the NumPy replay's sums."""
+    mesh = make_crate(n)
+    result = simplify_mesh(mesh, target, QUADRIC_HALF_EDGE)
+    kinds = _kinds_by_replay(mesh, result.log)
+    s = result.stats
+    assert len(kinds) == s["collapses"]
+    assert tuple(kinds.sum(axis=0)) == (s["twin_collapses"], s["stranded_collapses"],
+                                        s["stranded_wedges"])
+
+
+def test_entropy_twin_reports_the_kinds_of_its_one_collapse():
+    """entropy-twin takes the cube make_crate(1) from 12 to 10 faces: one collapse.
+
+    The hand count. Each of the 8 corners has 3 render vertices (one per box face, 24 in
+    all), and every edge is a box edge (two charts) or a face diagonal (one chart):
+
+    - a box edge u -> v between charts A and B removes a face of A and one of B: two
+      distinct wedge pairs, a twin collapse; u's wedge on the third face (where v is not)
+      is translated: twin 1, fake 1, translated 1; v's position then holds 3 + 1
+      render vertices, 22 in all;
+    - a face diagonal u -> v in chart A removes two faces of A: one pair, no twin; u's
+      wedges on its two other faces are translated: twin 0, fake 1, translated 2; v's
+      position holds 3 + 2 render vertices, 23 in all.
+
+    The engine's choice is read from the output: the position with more than three
+    render vertices is v.
+    """
+    mesh = make_crate(1)
+    assert (mesh.n_faces, mesh.n_vertices, mesh.welded.n_vertices) == (12, 24, 8)
+    result = EntropyTwin(resolution=RES, normals_angle=-1).simplify(mesh, 10)
+    out, s = result.mesh, result.stats
+    assert s["collapses"] == 1 and out.n_faces == 10
+    _, per_position = np.unique(out.positions, axis=0, return_counts=True)
+    assert len(per_position) == 7
+    extra = int(per_position.max()) - 3
+    assert sorted(per_position) == [3] * 6 + [3 + extra]
+    assert out.n_vertices == 21 + extra
+    hand = {1: (1, 1, 1), 2: (0, 1, 2)}  # box edge, face diagonal
+    assert extra in hand
+    assert (s["twin_collapses"], s["fake_collapses"], s["translated_duplicates"]) == hand[extra]
 
 
 # -- texture-coordinate correction ----------------------------------------------------------
@@ -282,4 +429,4 @@ def test_game_models_duplicate_vertices_where_attributes_change():
     ({"presimplify_faces": -2}, "presimplify_faces")])
 def test_bad_parameters_are_clear_errors(params, message):
     with pytest.raises(ParamError, match=message):
-        EntropyTwin(**params).simplify(_blob(1), 40)
+        EntropyTwin(**params).simplify(blob(1), 40)

@@ -15,10 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import trimesh
 
 from bench.errors import ParamError
-from bench.mesh import Mesh
+from conftest import blob
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh
 from methods.image_driven import ImageDriven
@@ -30,13 +29,6 @@ from metrics.views import dodecahedron_directions, silhouette_cameras
 RES = 48
 PLACEMENT = Policy(placement="memoryless", quadric_weight=0.0, memoryless_weight=0.0,
                    boundary_weight=0.0)
-
-
-def _blob(subdivisions=2, seed=1):
-    ico = trimesh.creation.icosphere(subdivisions)
-    rng = np.random.default_rng(seed)
-    positions = ico.vertices * (1 + 0.08 * rng.standard_normal((len(ico.vertices), 1)))
-    return Mesh(positions, ico.faces.astype(np.int32), name="blob")
 
 
 def _term(mesh, shading="flat", specular=False, cull=None, res=RES):
@@ -54,7 +46,7 @@ def _run(mesh, term, collapses, target=4):
 
 @pytest.mark.parametrize("shading,specular", [("flat", False), ("gouraud", True)])
 def test_incremental_images_equal_a_full_render(shading, specular):
-    mesh = _blob()
+    mesh = blob()
     result = _run(mesh, _term(mesh, shading, specular), collapses=120)
     assert result.stats["collapses"] == 120
     # bit for bit: the same kernels and per-vertex functions, faces in the same order
@@ -76,7 +68,7 @@ def test_incremental_images_with_texture_and_interior_views(small_torus):
 def test_cost_is_the_brute_force_change_of_the_squared_error(shading):
     """f(e, k) = SSE(Y0, Y^{k+1}) - SSE(Y0, Y^k) over whole images (equation 8 before
     restricting it to the rectangles)."""
-    mesh = _blob()
+    mesh = blob()
     term = _term(mesh, shading)
     for k in (0, 7, 30):
         before = _run(mesh, term, collapses=k)
@@ -90,7 +82,7 @@ def test_cost_is_the_brute_force_change_of_the_squared_error(shading):
 def test_engine_images_match_the_public_rasterizer():
     """Rendering in the engine's normalised frame agrees with rendering the extracted
     mesh in world coordinates (rounding of the projection may move a few edge pixels)."""
-    mesh = _blob()
+    mesh = blob()
     term = _term(mesh)
     result = _run(mesh, term, collapses=150)
     again = rasterize_luminance(result.mesh, term.cameras, RES, RES)
@@ -100,7 +92,7 @@ def test_engine_images_match_the_public_rasterizer():
 
 
 def test_interior_views_cull_front_faces():
-    mesh = _blob(1)
+    mesh = blob(1)
     cameras = silhouette_cameras(mesh)[:4]
     ids = face_id_buffers(mesh, cameras, RES, RES, cull_front=[False, True, False, True])
     centroids = mesh.positions[mesh.faces].mean(axis=1)
@@ -124,7 +116,7 @@ def test_view_directions_and_interior_mask():
 
 
 def test_method_reaches_the_target_and_is_deterministic():
-    mesh = _blob()
+    mesh = blob()
     method = ImageDriven(resolution=RES, presimplify_faces=200)
     first = method.simplify(mesh, 80)
     second = method.simplify(mesh, 80)
@@ -141,4 +133,4 @@ def test_method_reaches_the_target_and_is_deterministic():
     ({"presimplify_faces": -1}, "presimplify_faces")])
 def test_bad_parameters_are_clear_errors(params, message):
     with pytest.raises(ParamError, match=message):
-        ImageDriven(**params).simplify(_blob(1), 40)
+        ImageDriven(**params).simplify(blob(1), 40)

@@ -7,9 +7,9 @@ renderer (metrics.render) with MSAA off.
 
 import numpy as np
 import pytest
-import trimesh
 
 from bench.mesh import Mesh
+from conftest import icosphere
 from methods.imaging.raster import face_id_buffers, rasterize_luminance
 from metrics.views import Camera, cameras_for, dodecahedron_directions, protocol_cameras
 
@@ -85,13 +85,8 @@ def test_face_ids_match_reference(make):
         assert set(np.unique(ids[0])) == {-1, 0, 1}
 
 
-def _sphere():
-    s = trimesh.creation.icosphere(subdivisions=4)
-    return Mesh(np.asarray(s.vertices), np.asarray(s.faces), name="sphere")
-
-
 def test_sphere_covers_inscribed_disc():
-    mesh = _sphere()
+    mesh = icosphere(4, name="sphere")
     camera = protocol_cameras(mesh)[0]
     ids = face_id_buffers(mesh, [camera], 256, 256)
     coverage = np.mean(ids >= 0)
@@ -103,7 +98,7 @@ def test_sphere_covers_inscribed_disc():
 
 
 def test_background_is_exactly_128():
-    mesh = _sphere()
+    mesh = icosphere(4, name="sphere")
     camera = protocol_cameras(mesh)[3]
     away = Camera(eye=[0.0, 0.0, 3.0], target=[0.0, 0.0, 6.0], up=[0.0, 1.0, 0.0],
                   near=0.5, far=10.0)

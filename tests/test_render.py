@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from bench.mesh import Mesh
+from conftest import icosphere
 from metrics.render import (
     BACKGROUND,
     DEFAULT_CONSTANTS,
@@ -49,10 +50,7 @@ def _quad(tilt_deg=0.0, reverse=False, texture=None):
 
 @pytest.fixture(scope="module")
 def sphere():
-    import trimesh
-
-    s = trimesh.creation.icosphere(subdivisions=5)  # 20480 faces, vertices on |x| = 1
-    return Mesh(s.vertices, s.faces, name="icosphere")
+    return icosphere(5)  # 20480 faces, vertices on |x| = 1
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ import pytest
 
 from bench.harness.results import CSV_COLUMNS
 from bench.io.meshio import save_mesh
-from bench.mesh import Mesh
+from conftest import icosphere
 
 pytestmark = pytest.mark.slow
 
@@ -43,11 +43,8 @@ def _bench(*args, cwd, check=None):
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    import trimesh
-
     root = tmp_path_factory.mktemp("runner")
-    sphere = trimesh.creation.icosphere(subdivisions=2)  # 320 faces
-    save_mesh(Mesh(sphere.vertices, sphere.faces, name="ico"), root / "ico.obj")
+    save_mesh(icosphere(2, name="ico"), root / "ico.obj")  # 320 faces
     proc = _bench("run", "--models", "ico.obj", "--methods", "qslim,crash,hang,raise",
                   "--faces", "100,60", "--timeout", "20", "--jobs", "2", "--out", "out",
                   cwd=root)

@@ -48,7 +48,8 @@ from numba import njit
 from methods.mt.dag import MultiTriangulation
 from metrics.shading import LUMA_B, LUMA_G, LUMA_R
 
-__all__ = ["NodeBounds", "preprocess", "texel_luminance_ranges", "luminance_pyramid"]
+__all__ = ["NodeBounds", "preprocess", "node_triangles", "node_footprints",
+           "texel_luminance_ranges", "luminance_pyramid"]
 
 
 @dataclass
@@ -95,7 +96,7 @@ def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
     """
     import time
 
-    start = time.perf_counter()
+    start_time = time.perf_counter()
     m = mt.n_original
     orig = mt.triangles[:m].astype(np.int64)
     P = mt.positions
@@ -115,15 +116,55 @@ def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
         lum = texel_luminance_ranges(mt.uv[orig], mt.texture)
     else:
         lum = np.full((m, 2), float(albedo))
-    out = _node_bounds(mt.triangles.astype(np.int64), P,
-                       mt.uv if mt.uv is not None else np.zeros((1, 2)), mt.uv is not None,
-                       m, mt.created_start.astype(np.int64), mt.created.astype(np.int64),
-                       mt.removed_start.astype(np.int64), mt.removed.astype(np.int64),
-                       mt.child_start.astype(np.int64), mt.children.astype(np.int64),
-                       normals, 0.5 * area2, vnormals, lum)
-    center, radius, sax, sang, hax, hang, lrange, dev = out
+    tris = mt.triangles.astype(np.int64)
+    # every stage reads the same two lists, built once: the node's own triangles ...
+    start, split, own = node_triangles(mt)
+    # ... and the original triangles mapped to it (the collapse history, handed down)
+    fp_start, fp = _footprints(tris, P, m, start, split, own)
+    # §2.2, §5.3: the sphere's nearest point projects the deviation to the screen and
+    # culls nodes outside the view
+    center, radius = _spheres(tris, P, fp_start, fp, start, own)
+    # §5.3: may the node lie on the silhouette (original and simplified normals)
+    sax, sang = _silhouette_cones(tris, P, normals, 0.5 * area2, fp_start, fp, start, own)
+    # §5.4: the lit shading's range, from the original's vertex normals
+    hax, hang = _shading_cones(vnormals, fp_start, fp)
+    # §5.2: the contrast the node can induce, from the texels it covers
+    lrange = _luminance_ranges(lum, fp_start, fp)
+    # §2.2: how far the node moves the surface (monotone up the MT)
+    dev = _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
+                      mt.uv is not None, fp_start, fp, start, split, own,
+                      mt.child_start.astype(np.int64), mt.children.astype(np.int64))
     return NodeBounds(center, radius, sax, sang, hax, hang, lrange, dev, textured,
-                      time.perf_counter() - start)
+                      time.perf_counter() - start_time)
+
+
+def node_triangles(mt: MultiTriangulation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each node's own triangles as one CSR list: removed, then created.
+
+    Returns
+    -------
+    start : ndarray (c + 1,) int64
+    split : ndarray (c,) int64
+    own : ndarray (k,) int64
+        Node i removes ``own[start[i]:split[i]]`` and creates ``own[split[i]:start[i + 1]]``
+        (MT triangle indices, in the order of ``mt.removed`` and ``mt.created``).
+    """
+    return _node_triangles(mt.removed_start.astype(np.int64), mt.removed.astype(np.int64),
+                           mt.created_start.astype(np.int64), mt.created.astype(np.int64))
+
+
+def node_footprints(mt: MultiTriangulation) -> tuple[np.ndarray, np.ndarray]:
+    """The original triangles mapped to each node (the module docstring's first choice).
+
+    Returns
+    -------
+    fp_start : ndarray (c + 1,) int64; fp : ndarray (k,) int64
+        Node i's original triangles (indices of the input's faces) are
+        ``fp[fp_start[i]:fp_start[i + 1]]``.
+    """
+    start, split, own = node_triangles(mt)
+    return _footprints(mt.triangles.astype(np.int64), mt.positions, mt.n_original,
+                       start, split, own)
 
 
 # -- texel luminance through a min/max pyramid (§4) -------------------------------------------
@@ -371,40 +412,139 @@ def _cone(vectors, n, axis_out):
     return math.acos(max(-1.0, min(1.0, min_cos)))
 
 
+# The stages below share two CSR lists built once: each node's own triangles
+# (``_node_triangles``) and each node's original triangles (``_footprints``). Arrays:
+#
+#   tris : (nt, 3) int64     every MT triangle, as MT vertex indices; the first m original
+#   P : (nv, 3) float64      MT vertex positions
+#   start : (c + 1,) int64   node i's own triangles are own[start[i]:start[i + 1]] ...
+#   split : (c,) int64       ... the removed ones before split[i], the created ones after
+#   own : (k,) int64         MT triangle indices
+#   fp_start : (c + 1,) int64, fp : (kf,) int64
+#                            node i's original triangles are fp[fp_start[i]:fp_start[i + 1]]
+
+
 @njit(cache=True)
-def _node_bounds(tris, P, UV, has_uv, m, c_start, c_list, r_start, r_list, child_start,
-                 children, normals, areas, vnormals, lum):
-    c = c_start.shape[0] - 1
+def _node_triangles(r_start, r_list, c_start, c_list):
+    """Each node's own triangles as one CSR list: those it removes, then those it creates.
+
+    Parameters
+    ----------
+    r_start, r_list : ndarray (c + 1,), (kr,) int64
+        CSR: the triangles node i removes.
+    c_start, c_list : ndarray (c + 1,), (kc,) int64
+        CSR: the triangles node i creates.
+
+    Returns
+    -------
+    start : ndarray (c + 1,) int64
+    split : ndarray (c,) int64
+        Where node i's created triangles begin in ``own``.
+    own : ndarray (kr + kc,) int64
+    """
+    c = r_start.shape[0] - 1
+    start = np.zeros(c + 1, np.int64)
+    split = np.zeros(c, np.int64)
+    own = np.empty(r_list.shape[0] + c_list.shape[0], np.int64)
+    n = 0
+    for i in range(c):
+        for j in range(r_start[i], r_start[i + 1]):
+            own[n] = r_list[j]
+            n += 1
+        split[i] = n
+        for j in range(c_start[i], c_start[i + 1]):
+            own[n] = c_list[j]
+            n += 1
+        start[i + 1] = n
+    return start, split, own
+
+
+@njit(cache=True)
+def _footprints(tris, P, m, start, split, own):
+    """Each node's original triangles (the module docstring's first choice).
+
+    Every original triangle belongs to one triangle of the current cut, the one it was
+    last handed to (at first itself). Node i collects the originals of the triangles it
+    removes and hands each to its created triangle nearest to the original's centroid
+    (Ericson's point-triangle distance; the first of equals wins). A node that creates
+    nothing keeps its originals but hands them on to no one.
+
+    Parameters
+    ----------
+    tris : ndarray (nt, 3) int64; P : ndarray (nv, 3) float64
+    m : int
+        Original triangles (the first m of ``tris``).
+    start, split, own : ndarray int64
+        From :func:`_node_triangles`.
+
+    Returns
+    -------
+    fp_start : ndarray (c + 1,) int64; fp : ndarray (kf,) int64
+        CSR over nodes of original triangle indices, in collection order.
+    """
+    c = start.shape[0] - 1
     nt = tris.shape[0]
-    head = np.full(nt, -1, np.int64)
-    nxt = np.full(m, -1, np.int64)
+    head = np.full(nt, -1, np.int64)  # first original held by each MT triangle
+    nxt = np.full(m, -1, np.int64)  # next original held by the same triangle
     for o in range(m):
         head[o] = o
-    center = np.zeros((c, 3))
-    radius = np.zeros(c)
-    sil_axis = np.zeros((c, 3))
-    sil_angle = np.zeros(c)
-    sh_axis = np.zeros((c, 3))
-    sh_angle = np.zeros(c)
-    lrange = np.zeros((c, 2))
-    dev = np.zeros(c)
-    fp = np.empty(m, np.int64)
-    vec = np.empty((4096, 3))
-    axis = np.empty(3)
+    fp_start = np.zeros(c + 1, np.int64)
+    fp = np.empty(max(16, 4 * m), np.int64)
+    n = 0
     for i in range(c):
-        k = 0
-        for j in range(r_start[i], r_start[i + 1]):
-            t = r_list[j]
+        first = n
+        for j in range(start[i], split[i]):
+            t = own[j]
             o = head[t]
             while o != -1:
-                fp[k] = o
-                k += 1
+                if n == fp.shape[0]:
+                    grown = np.empty(2 * n, np.int64)
+                    grown[:n] = fp
+                    fp = grown
+                fp[n] = o
+                n += 1
                 o = nxt[o]
             head[t] = -1
-        # bounding sphere: box centre, farthest point
+        fp_start[i + 1] = n
+        c0, c1 = split[i], start[i + 1]
+        if c1 > c0:
+            for q in range(first, n):
+                o = fp[q]
+                g = (P[tris[o, 0]] + P[tris[o, 1]] + P[tris[o, 2]]) / 3.0
+                best = 1e300
+                best_t = -1
+                for j in range(c0, c1):
+                    t = own[j]
+                    d = _closest_distance(g, P[tris[t, 0]], P[tris[t, 1]], P[tris[t, 2]])
+                    if d < best:
+                        best = d
+                        best_t = t
+                nxt[o] = head[best_t]
+                head[best_t] = o
+    return fp_start, fp[:n].copy()
+
+
+@njit(cache=True)
+def _spheres(tris, P, fp_start, fp, start, own):
+    """Bounding sphere of each node's original and own triangles' corners.
+
+    The centre is the centre of their bounding box, the radius the farthest corner.
+
+    Parameters
+    ----------
+    tris, P, fp_start, fp, start, own : see the block comment above
+
+    Returns
+    -------
+    center : ndarray (c, 3) float64; radius : ndarray (c,) float64
+    """
+    c = start.shape[0] - 1
+    center = np.zeros((c, 3))
+    radius = np.zeros(c)
+    for i in range(c):
         lo0 = lo1 = lo2 = 1e300
         hi0 = hi1 = hi2 = -1e300
-        for q in range(k):
+        for q in range(fp_start[i], fp_start[i + 1]):
             for e in range(3):
                 x = P[tris[fp[q], e]]
                 lo0 = min(lo0, x[0])
@@ -413,85 +553,174 @@ def _node_bounds(tris, P, UV, has_uv, m, c_start, c_list, r_start, r_list, child
                 hi0 = max(hi0, x[0])
                 hi1 = max(hi1, x[1])
                 hi2 = max(hi2, x[2])
-        for part in range(2):
-            s0 = r_start[i] if part == 0 else c_start[i]
-            s1 = r_start[i + 1] if part == 0 else c_start[i + 1]
-            lst = r_list if part == 0 else c_list
-            for j in range(s0, s1):
-                for e in range(3):
-                    x = P[tris[lst[j], e]]
-                    lo0 = min(lo0, x[0])
-                    lo1 = min(lo1, x[1])
-                    lo2 = min(lo2, x[2])
-                    hi0 = max(hi0, x[0])
-                    hi1 = max(hi1, x[1])
-                    hi2 = max(hi2, x[2])
+        for j in range(start[i], start[i + 1]):
+            for e in range(3):
+                x = P[tris[own[j], e]]
+                lo0 = min(lo0, x[0])
+                lo1 = min(lo1, x[1])
+                lo2 = min(lo2, x[2])
+                hi0 = max(hi0, x[0])
+                hi1 = max(hi1, x[1])
+                hi2 = max(hi2, x[2])
         cx, cy, cz = 0.5 * (lo0 + hi0), 0.5 * (lo1 + hi1), 0.5 * (lo2 + hi2)
         r2 = 0.0
-        for q in range(k):
+        for q in range(fp_start[i], fp_start[i + 1]):
             for e in range(3):
                 x = P[tris[fp[q], e]]
                 r2 = max(r2, (x[0] - cx) ** 2 + (x[1] - cy) ** 2 + (x[2] - cz) ** 2)
-        for part in range(2):
-            s0 = r_start[i] if part == 0 else c_start[i]
-            s1 = r_start[i + 1] if part == 0 else c_start[i + 1]
-            lst = r_list if part == 0 else c_list
-            for j in range(s0, s1):
-                for e in range(3):
-                    x = P[tris[lst[j], e]]
-                    r2 = max(r2, (x[0] - cx) ** 2 + (x[1] - cy) ** 2 + (x[2] - cz) ** 2)
+        for j in range(start[i], start[i + 1]):
+            for e in range(3):
+                x = P[tris[own[j], e]]
+                r2 = max(r2, (x[0] - cx) ** 2 + (x[1] - cy) ** 2 + (x[2] - cz) ** 2)
         center[i, 0] = cx
         center[i, 1] = cy
         center[i, 2] = cz
         radius[i] = math.sqrt(r2)
-        # silhouette cone: area-weighted original normals and the node's own triangles
+    return center, radius
+
+
+@njit(cache=True)
+def _silhouette_cones(tris, P, normals, areas, fp_start, fp, start, own):
+    """Silhouette normal cone of each node (§5.3).
+
+    The cone of the area-weighted normals of the node's original triangles and of its
+    own triangles, removed and created (each own triangle's weight is its area: half
+    its cross product), summed in that order.
+
+    Parameters
+    ----------
+    tris, P, fp_start, fp, start, own : see the block comment above
+    normals : ndarray (m, 3) float64
+        Unit normals of the original triangles (zero if degenerate).
+    areas : ndarray (m,) float64
+
+    Returns
+    -------
+    axis : ndarray (c, 3) float64; angle : ndarray (c,) float64
+    """
+    c = start.shape[0] - 1
+    sil_axis = np.zeros((c, 3))
+    sil_angle = np.zeros(c)
+    vec = np.empty((4096, 3))
+    axis = np.empty(3)
+    for i in range(c):
+        k = fp_start[i + 1] - fp_start[i]
+        n_own = start[i + 1] - start[i]
+        if vec.shape[0] < k + n_own:
+            vec = np.empty((2 * (k + n_own) + 16, 3))
         nvec = 0
-        if vec.shape[0] < k + (r_start[i + 1] - r_start[i]) + (c_start[i + 1] - c_start[i]):
-            vec = np.empty((2 * (k + r_start[i + 1] - r_start[i] + c_start[i + 1]
-                                 - c_start[i]) + 16, 3))
-        for q in range(k):
+        for q in range(fp_start[i], fp_start[i + 1]):
             o = fp[q]
             for e in range(3):
                 vec[nvec, e] = normals[o, e] * areas[o]
             nvec += 1
-        for part in range(2):
-            s0 = r_start[i] if part == 0 else c_start[i]
-            s1 = r_start[i + 1] if part == 0 else c_start[i + 1]
-            lst = r_list if part == 0 else c_list
-            for j in range(s0, s1):
-                a = P[tris[lst[j], 0]]
-                b = P[tris[lst[j], 1]]
-                cc = P[tris[lst[j], 2]]
-                n = np.cross(b - a, cc - a)
-                vec[nvec] = 0.5 * n
-                nvec += 1
+        for j in range(start[i], start[i + 1]):
+            a = P[tris[own[j], 0]]
+            b = P[tris[own[j], 1]]
+            cc = P[tris[own[j], 2]]
+            n = np.cross(b - a, cc - a)
+            vec[nvec] = 0.5 * n
+            nvec += 1
         sil_angle[i] = _cone(vec, nvec, axis)
         sil_axis[i] = axis
-        # shading cone: the original vertex normals
+    return sil_axis, sil_angle
+
+
+@njit(cache=True)
+def _shading_cones(vnormals, fp_start, fp):
+    """Shading normal cone of each node (§5.4): the original's vertex normals at the
+    corners of its original triangles, summed in corner order.
+
+    Parameters
+    ----------
+    vnormals : ndarray (m, 3, 3) float64
+        Unit vertex normal at corner e of original triangle o (zero if undefined).
+    fp_start, fp : see the block comment above
+
+    Returns
+    -------
+    axis : ndarray (c, 3) float64; angle : ndarray (c,) float64
+    """
+    c = fp_start.shape[0] - 1
+    sh_axis = np.zeros((c, 3))
+    sh_angle = np.zeros(c)
+    vec = np.empty((4096, 3))
+    axis = np.empty(3)
+    for i in range(c):
+        k = fp_start[i + 1] - fp_start[i]
         if vec.shape[0] < 3 * k:
             vec = np.empty((6 * k + 16, 3))
         nvec = 0
-        for q in range(k):
+        for q in range(fp_start[i], fp_start[i + 1]):
             for e in range(3):
                 vec[nvec] = vnormals[fp[q], e]
                 nvec += 1
         sh_angle[i] = _cone(vec, nvec, axis)
         sh_axis[i] = axis
-        # texel luminance range
+    return sh_axis, sh_angle
+
+
+@njit(cache=True)
+def _luminance_ranges(lum, fp_start, fp):
+    """Luminance range of each node (§5.2): the union of its original triangles' texel
+    ranges; (0, 0) for a node without original triangles.
+
+    Parameters
+    ----------
+    lum : ndarray (m, 2) float64
+        L_min, L_max per original triangle.
+    fp_start, fp : see the block comment above
+
+    Returns
+    -------
+    ndarray (c, 2) float64
+    """
+    c = fp_start.shape[0] - 1
+    lrange = np.zeros((c, 2))
+    for i in range(c):
         lmin = 1e300
         lmax = -1e300
-        for q in range(k):
+        for q in range(fp_start[i], fp_start[i + 1]):
             lmin = min(lmin, lum[fp[q], 0])
             lmax = max(lmax, lum[fp[q], 1])
-        if k == 0:
+        if fp_start[i + 1] == fp_start[i]:
             lmin = 0.0
             lmax = 0.0
         lrange[i, 0] = lmin
         lrange[i, 1] = lmax
-        # texture deviation, and hand each original to its nearest created triangle
+    return lrange
+
+
+@njit(cache=True)
+def _deviations(tris, P, UV, has_uv, fp_start, fp, start, split, own, child_start, children):
+    """Sampled texture deviation of each node (§2.2; the module docstring's third choice).
+
+    For every corner of the node's original triangles: the smallest distance to a point
+    of a created triangle whose UV triangle contains the corner's UV (the parametric
+    distance), or, when none does or there are no UVs, the distance to the nearest
+    created triangle; the node's deviation is the largest of these and of its
+    children's deviations (children come first: they have smaller indices). A node that
+    creates nothing has only its children's.
+
+    Parameters
+    ----------
+    tris, P, fp_start, fp, start, split, own : see the block comment above
+    UV : ndarray (nv, 2) float64
+        MT vertex texture coordinates (ignored unless ``has_uv``).
+    has_uv : bool
+    child_start, children : ndarray (c + 1,), (kc,) int64
+        CSR: the nodes creating node i's removed triangles.
+
+    Returns
+    -------
+    ndarray (c,) float64
+    """
+    c = start.shape[0] - 1
+    dev = np.zeros(c)
+    for i in range(c):
         d_node = 0.0
-        c0, c1 = c_start[i], c_start[i + 1]
-        for q in range(k):
+        c0, c1 = split[i], start[i + 1]
+        for q in range(fp_start[i], fp_start[i + 1]):
             o = fp[q]
             if c1 > c0:
                 for e in range(3):
@@ -499,7 +728,7 @@ def _node_bounds(tris, P, UV, has_uv, m, c_start, c_list, r_start, r_list, child
                     best_geo = 1e300
                     best_par = 1e300
                     for j in range(c0, c1):
-                        t = c_list[j]
+                        t = own[j]
                         a = P[tris[t, 0]]
                         b = P[tris[t, 1]]
                         cc = P[tris[t, 2]]
@@ -512,18 +741,7 @@ def _node_bounds(tris, P, UV, has_uv, m, c_start, c_list, r_start, r_list, child
                                 dd = x - y
                                 best_par = min(best_par, math.sqrt(dd @ dd))
                     d_node = max(d_node, best_par if best_par < 1e300 else best_geo)
-                g = (P[tris[o, 0]] + P[tris[o, 1]] + P[tris[o, 2]]) / 3.0
-                best = 1e300
-                best_t = -1
-                for j in range(c0, c1):
-                    t = c_list[j]
-                    d = _closest_distance(g, P[tris[t, 0]], P[tris[t, 1]], P[tris[t, 2]])
-                    if d < best:
-                        best = d
-                        best_t = t
-                nxt[o] = head[best_t]
-                head[best_t] = o
         for j in range(child_start[i], child_start[i + 1]):
             d_node = max(d_node, dev[children[j]])
         dev[i] = d_node
-    return center, radius, sil_axis, sil_angle, sh_axis, sh_angle, lrange, dev
+    return dev
