@@ -13,8 +13,12 @@ from methods.engine.loop import _run
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
 from methods.engine.quadrics import _boundary_corners, initial_quadrics, wedge_quadrics
 from methods.engine.state import (
+    KIND_STRANDED,
+    KIND_STRANDED_WEDGES,
+    KIND_TWIN,
     LOG_CHANGED,
     LOG_COLLAPSES,
+    N_KINDS,
     WEDGE_QUADRIC_SIZE,
     Images,
     MeshArrays,
@@ -131,7 +135,7 @@ def _prepare(mesh: Mesh, policy: Policy, image) -> _Prepared:
     arrays = MeshArrays(P, None, F, FW, falive, vhead, cnext, valive, vboundary,
                         wedge_vertex, uv, np.zeros(nv, bool), None)
     return _Prepared(P0, P, lo, scale, arrays, boundary_corners, vperm, fperm,
-                     np.zeros(3, np.int64))
+                     np.zeros(N_KINDS, np.int64))
 
 
 def _renumber(P0, P, vboundary, F, FW, wedge_vertex, boundary_corners):
@@ -216,8 +220,9 @@ def _statistics(n, evaluations, mismatches, rejects, kinds, verify, seconds) -> 
              "engine_seconds": seconds,
              "collapses_per_second": n / seconds if seconds > 0 else None}
     # González et al. 2008, Algorithm 2: every collapse is a real edge; see _count_kinds
-    stats.update(twin_collapses=int(kinds[0]), stranded_collapses=int(kinds[1]),
-                 stranded_wedges=int(kinds[2]))
+    stats.update(twin_collapses=int(kinds[KIND_TWIN]),
+                 stranded_collapses=int(kinds[KIND_STRANDED]),
+                 stranded_wedges=int(kinds[KIND_STRANDED_WEDGES]))
     if verify:
         stats["lazy_mismatches"] = int(mismatches)
     return stats

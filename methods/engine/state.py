@@ -51,6 +51,13 @@ LOG_CHANGED_MIN = 16
 #: faces than this).
 LOG_CHANGED_HEADROOM = 4096
 
+#: Counters of the ``kinds`` array (methods.engine.wedges._count_kinds): collapses that
+#: took a twin edge along, collapses that stranded wedges, and the wedges stranded.
+KIND_TWIN = 0
+KIND_STRANDED = 1
+KIND_STRANDED_WEDGES = 2
+N_KINDS = 3
+
 #: Cost-term weights of a run (all floats; 0 switches a term off).
 Weights = namedtuple("Weights", "quadric memoryless canny image entropy")
 

@@ -10,6 +10,7 @@ from numba import njit
 
 from methods.engine.lindstrom_turk import r5_texture_coordinates, texture_kappa
 from methods.engine.policy import LT_ALPHA_DEG
+from methods.engine.state import KIND_STRANDED, KIND_STRANDED_WEDGES, KIND_TWIN
 from methods.engine.topology import _edge_faces, _has_vertex
 
 
@@ -257,10 +258,11 @@ def _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex, wm
 @njit(cache=True)
 def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, kinds):
     """González et al. 2008, Algorithm 2, in welded terms, for collapsing u into v:
-    kinds[0] += 1 when the edge's faces pair two different wedge pairs (the real edge
-    and its *twin* at a seam or a sub-mesh joint collapse together); kinds[1] += 1 and
-    kinds[2] += (their number) when wedges of u have no partner at v (the paper's
-    disconnected vertices, which a *fake* edge or a translation brings to v)."""
+    kinds[KIND_TWIN] += 1 when the edge's faces pair two different wedge pairs (the real
+    edge and its *twin* at a seam or a sub-mesh joint collapse together);
+    kinds[KIND_STRANDED] += 1 and kinds[KIND_STRANDED_WEDGES] += (their number) when
+    wedges of u have no partner at v (the paper's disconnected vertices, which a *fake*
+    edge or a translation brings to v)."""
     distinct = 0
     for i in range(npairs):
         seen = False
@@ -270,7 +272,7 @@ def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, 
         if not seen:
             distinct += 1
     if distinct >= 2:
-        kinds[0] += 1
+        kinds[KIND_TWIN] += 1
     stranded = 0
     first = np.full(16, -1, np.int64)
     c = vhead[u]
@@ -289,8 +291,8 @@ def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, 
                     stranded += 1
         c = cnext[c]
     if stranded > 0:
-        kinds[1] += 1
-        kinds[2] += stranded
+        kinds[KIND_STRANDED] += 1
+        kinds[KIND_STRANDED_WEDGES] += stranded
 
 
 def _face_kappa(P, F, FW, uv) -> np.ndarray:
