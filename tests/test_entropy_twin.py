@@ -45,7 +45,7 @@ def _kernel_entropy(ids, background):
     ids = np.asarray(ids, np.int64)
     ent = entropy_state(len(ids), int(ids.max()) + 1, True, background, False)
     entropy_init(ids, ent)
-    return np.array([view_entropy(s, float(a)) for s, a in zip(ent[1], ent[2])])
+    return np.array([view_entropy(s, float(a)) for s, a in zip(ent.sums, ent.totals)])
 
 
 # -- the entropy of hand-made configurations -------------------------------------------

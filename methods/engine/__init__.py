@@ -4,11 +4,19 @@ validity checks, a lazily re-evaluated priority queue, and a collapse log.
 Every method of the suite that removes edges runs on this engine. The pipeline, in
 :func:`simplify_mesh`, for a mesh and a face target::
 
-    arrays at unit diagonal     welded positions/faces, wedge per corner, corner lists,
-                                quadrics (vertex planes, or per-wedge 5-D ones)
-    _run (numba)                push every edge; pop, re-cost if stale, check, collapse,
-                                stamp, push the kept vertex's edges; log each collapse
-    _extract                    render vertices again from the surviving wedges
+    _prepare                    welded positions/faces at unit diagonal, wedge per
+                                corner, corner lists (Morton-renumbered with images)
+    _quadrics                   vertex planes, or per-wedge 5-D quadrics
+    _rules, _terms              the policy as codes; the cost terms' inputs
+    _image_state                the image term's state, original rendered
+    _run (numba, loop.py)       _collect_candidates; then _pop_current, _check_candidate
+                                (or _block), _take (log, collapse, images),
+                                _requeue_neighbours / _requeue_apexes
+    _extract, _statistics       render vertices again from the surviving wedges; counts
+    _log_in_input_numbering     the collapse log in the input's ids and units
+
+The kernels pass a few named structures (:mod:`methods.engine.state`: MeshArrays,
+Rules, Terms, Scratch, Queue, Blocked, Log, Images), never loose positional arrays.
 
 Policies are data, not callbacks (the Python layer never runs per collapse). A
 :class:`Policy` names a *placement* (where the surviving vertex goes) and a weighted sum

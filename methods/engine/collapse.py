@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit
 
 from methods.engine.quadrics import _uv_minimiser
+from methods.engine.state import QUADRIC_SIZE, WEDGE_QUADRIC_SIZE, WEDGE_TARGETS_CAP
 from methods.engine.topology import _compact, _edge_faces, _third
 from methods.engine.wedges import (
     _count_kinds,
@@ -19,49 +20,22 @@ from methods.engine.wedges import (
 
 
 @njit(cache=True)
-def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, uv,
-              has_uv, efaces, wmap_from, wmap_to, log_changed, n_changed, use_r5, face_kappa,
-              r5ws, WQ, tws, uv_fix, kinds):
-    """Merge u into v at p. Returns (faces removed, changed count) and fills efaces with
-    the removed faces. ``kinds`` counts twin and stranded-wedge collapses
-    (:func:`_count_kinds`); ``uv_fix`` applies :func:`_uv_correction` last."""
+def _collapse(u, v, p, mesh, rules, terms, scratch, log_changed, n_changed, kinds):
+    """Merge u into v at p. Returns (faces removed, changed count) and fills
+    ``scratch.efaces`` with the removed faces; the faces whose corner moved are appended
+    to ``log_changed`` from ``n_changed``. ``kinds`` counts twin and stranded-wedge
+    collapses (:func:`_count_kinds`); ``rules.uv_fix`` applies :func:`_uv_correction`
+    last."""
+    P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex = (
+        mesh.P, mesh.Q, mesh.F, mesh.FW, mesh.falive, mesh.vhead, mesh.cnext, mesh.valive,
+        mesh.wedge_vertex)
+    efaces, wmap_from, wmap_to = scratch.efaces, scratch.wmap_from, scratch.wmap_to
     # Pair the wedges of u and v across each removed face (same side of the edge).
     npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to)
     _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, kinds)
-    n_fix = 0
-    cap = 64 if uv_fix else 0  # own scratch: the UV updates below reuse r5ws and tws
-    fix_t = np.empty(cap, np.int64)
-    fix_uv = np.empty((cap, 2))
-    fix_m = np.zeros(cap, np.int64)
-    if has_uv and uv_fix:
-        n_fix = _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex,
-                               wmap_from, wmap_to, npairs, fix_t, fix_uv, fix_m)
+    # New texture coordinates of the merged wedges (before the topology changes).
+    _merge_uvs(u, v, p, npairs, mesh, rules, terms, scratch)
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
-    t = _edge_parameter(u, v, p, P)  # for merged attributes
-    if has_uv and WQ.shape[0] > 1:  # Garland-Heckbert 1998: merge, then minimise UVs
-        targets, g = tws[2], tws[3]
-        nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs,
-                            targets)
-        for i in range(npairs):
-            for j in range(31):
-                WQ[wmap_to[i], j] += WQ[wmap_from[i], j]
-        best = np.empty(2)
-        for i in range(nt):
-            _uv_minimiser(WQ[targets[i]], p, uv[targets[i]], best)
-            uv[targets[i], 0] = best[0]
-            uv[targets[i], 1] = best[1]
-    elif has_uv and use_r5:
-        _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from,
-                   wmap_to, npairs, t, r5ws)
-    elif has_uv:
-        for i in range(npairs):
-            a, b = wmap_from[i], wmap_to[i]
-            uv[b, 0] = (1.0 - t) * uv[a, 0] + t * uv[b, 0]
-            uv[b, 1] = (1.0 - t) * uv[a, 1] + t * uv[b, 1]
-    for i in range(n_fix):  # González et al. 2008's correction replaces the above
-        if fix_m[i] == 1:
-            uv[fix_t[i], 0] = fix_uv[i, 0]
-            uv[fix_t[i], 1] = fix_uv[i, 1]
     for i in range(k):
         falive[efaces[i]] = False
     for i in range(k):  # the apexes of removed faces hold dead corners now
@@ -91,7 +65,53 @@ def _collapse(u, v, p, P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex, 
     vhead[u] = -1
     valive[u] = False
     P[v] = p
-    for i in range(10):
+    for i in range(QUADRIC_SIZE):
         Q[v, i] += Q[u, i]
     _compact(v, vhead, cnext, falive)
     return k, n_changed
+
+
+@njit(cache=True)
+def _merge_uvs(u, v, p, npairs, mesh, rules, terms, scratch):
+    """The UVs of the wedges merged by collapsing u into v at p (``npairs`` pairs in
+    ``scratch.wmap_from``/``wmap_to``): Garland & Heckbert 1998's minimiser of the summed
+    wedge quadrics, Lindstrom & Turk 2000's R^5 volumes, or interpolation along the edge;
+    then González et al. 2008's correction (``rules.uv_fix``) where it applies."""
+    P, F, FW, falive, vhead, cnext, wedge_vertex, uv, WQ = (
+        mesh.P, mesh.F, mesh.FW, mesh.falive, mesh.vhead, mesh.cnext, mesh.wedge_vertex,
+        mesh.uv, mesh.WQ)
+    has_uv, use_r5, uv_fix = rules.has_uv, rules.use_r5, rules.uv_fix
+    wmap_from, wmap_to = scratch.wmap_from, scratch.wmap_to
+    n_fix = 0
+    cap = WEDGE_TARGETS_CAP if uv_fix else 0  # own scratch: the UV updates use r5 and wq
+    fix_t = np.empty(cap, np.int64)
+    fix_uv = np.empty((cap, 2))
+    fix_m = np.zeros(cap, np.int64)
+    if has_uv and uv_fix:
+        n_fix = _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex,
+                               wmap_from, wmap_to, npairs, fix_t, fix_uv, fix_m)
+    t = _edge_parameter(u, v, p, P)  # for merged attributes
+    if has_uv and WQ.shape[0] > 1:  # Garland-Heckbert 1998: merge, then minimise UVs
+        targets = scratch.wq.targets
+        nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs,
+                            targets)
+        for i in range(npairs):
+            for j in range(WEDGE_QUADRIC_SIZE):
+                WQ[wmap_to[i], j] += WQ[wmap_from[i], j]
+        best = np.empty(2)
+        for i in range(nt):
+            _uv_minimiser(WQ[targets[i]], p, uv[targets[i]], best)
+            uv[targets[i], 0] = best[0]
+            uv[targets[i], 1] = best[1]
+    elif has_uv and use_r5:
+        _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, terms.face_kappa,
+                   wmap_from, wmap_to, npairs, t, scratch.r5)
+    elif has_uv:
+        for i in range(npairs):
+            a, b = wmap_from[i], wmap_to[i]
+            uv[b, 0] = (1.0 - t) * uv[a, 0] + t * uv[b, 0]
+            uv[b, 1] = (1.0 - t) * uv[a, 1] + t * uv[b, 1]
+    for i in range(n_fix):  # González et al. 2008's correction replaces the above
+        if fix_m[i] == 1:
+            uv[fix_t[i], 0] = fix_uv[i, 0]
+            uv[fix_t[i], 1] = fix_uv[i, 1]

@@ -16,8 +16,12 @@ from methods.engine.policy import (
     LT_BOUNDARY_WEIGHT,
     LT_SHAPE_WEIGHT,
     LT_VOLUME_WEIGHT,
+    PLACE_ENDPOINTS,
+    PLACE_MEMORYLESS,
+    PLACE_MIDPOINT,
 )
 from methods.engine.quadrics import _add_reduced, _group_quadric, _optimal_point, quadric_error
+from methods.engine.state import QUADRIC_SIZE
 from methods.engine.topology import _edge_faces, _gather_profile, _normal
 from methods.engine.wedges import (
     _edge_parameter,
@@ -33,137 +37,181 @@ from metrics.shading import BACKGROUND
 
 
 @njit(cache=True)
-def _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary, efaces, mark, tick, ws,
-              placement, weights, seam_rule, boundary_rule, qsum, out_p, uv, borders, inv_area,
-              no_record, WQ, tws, ictx):
+def _evaluate(a, b, mesh, rules, terms, scratch, images):
     """Cost of collapsing edge (a, b) and where the kept vertex goes.
 
-    ``weights`` = (quadric, memoryless, canny, image, entropy) cost-term weights; ``ws`` =
-    the Lindstrom–Turk workspace (tri_a, tri_b, tri_c, bnd_a, bnd_b, link). Returns
-    (cost, keep): keep is the vertex that survives (the other is removed), and the new
-    position is written to ``out_p``. cost is +inf when the seam rule forbids the
-    collapse.
+    ``mesh``, ``rules``, ``terms``, ``scratch`` and ``images`` are the structures of
+    :mod:`methods.engine.state`. Returns (cost, keep): keep is the vertex that survives
+    (the other is removed), and the new position is written to ``scratch.p``. cost is
+    +inf when the seam or boundary rule forbids the collapse.
 
-    Seam rule (``seam_rule``), as vertex kinds: a seam vertex (two or more wedges) may
-    only move along its seam. So an edge between a seam vertex and an ordinary one is a
-    half-edge collapse onto the seam vertex, which stays where it is; an edge between two
-    seam vertices must itself be a seam edge (else it would cut a UV chart in two), and
-    may then be placed freely.
-
-    Boundary rule (``boundary_rule``): likewise a boundary vertex is never merged into an
-    interior one (the hole would grow into the surface); an edge from a boundary vertex
-    to an interior one keeps the boundary vertex where it is.
+    The steps: the summed quadric (:func:`_edge_quadric`), the vertex the rules force
+    to stay (:func:`_forced_end`), the Lindstrom–Turk profile when a term or the
+    placement needs it, the Canny term (edge only), then the placement and the cost at
+    it (:func:`_place_and_cost`).
     """
-    w_q, w_lt = weights[0], weights[1]
-    for i in range(10):
+    P, out_p = mesh.P, scratch.p
+    _edge_quadric(a, b, mesh, scratch)
+    forced = _forced_end(a, b, mesh, rules, scratch)
+    if forced == -2:  # forbidden
+        out_p[:] = P[b]
+        return np.inf, b
+    pr = scratch.profile
+    n_tris = n_bnd = n_link = 0
+    l2 = ((P[a, 0] - P[b, 0]) ** 2 + (P[a, 1] - P[b, 1]) ** 2 + (P[a, 2] - P[b, 2]) ** 2)
+    if rules.weights.memoryless != 0.0 or rules.placement == PLACE_MEMORYLESS:
+        n_tris, n_bnd, n_link = _gather_profile(a, b, P, mesh.F, mesh.vhead, mesh.cnext,
+                                                mesh.falive, mesh.vboundary, scratch.efaces,
+                                                scratch.mark, scratch.tick, pr.tri_a,
+                                                pr.tri_b, pr.tri_c, pr.bnd_a, pr.bnd_b,
+                                                pr.link)
+    canny = 0.0
+    if rules.weights.canny != 0.0:  # depends on the edge only, not on where the vertex goes
+        canny = rules.weights.canny * _canny_penalty(
+            a, b, P, mesh.F, mesh.FW, mesh.uv, terms.borders, mesh.vhead, mesh.cnext,
+            mesh.falive, scratch.efaces, terms.inv_area, scratch.no_record)
+    return _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
+                           terms, scratch, images)
+
+
+@njit(cache=True)
+def _edge_quadric(a, b, mesh, scratch):
+    """``scratch.qsum`` = the quadric of edge (a, b): the endpoints' vertex quadrics,
+    plus with wedge quadrics (Garland-Heckbert 1998, over (x, y, z, u, v)) each merged
+    wedge's group quadric reduced at its UV."""
+    Q, qsum, WQ = mesh.Q, scratch.qsum, mesh.WQ
+    for i in range(QUADRIC_SIZE):
         qsum[i] = Q[a, i] + Q[b, i]
-    if WQ.shape[0] > 1:  # Garland-Heckbert 1998: wedge quadrics over (x, y, z, u, v)
-        gfrom, gto, targets, g = tws
-        npairs = _wedge_pairs(a, b, F, FW, vhead, cnext, falive, efaces, gfrom, gto)
-        nt = _wedge_targets(a, b, FW, vhead, cnext, falive, gfrom, gto, npairs, targets)
+    if WQ.shape[0] > 1:
+        gfrom, gto, targets, g = (scratch.wq.gfrom, scratch.wq.gto, scratch.wq.targets,
+                                  scratch.wq.g)
+        npairs = _wedge_pairs(a, b, mesh.F, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive,
+                              scratch.efaces, gfrom, gto)
+        nt = _wedge_targets(a, b, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive, gfrom, gto,
+                            npairs, targets)
         for i in range(nt):
             _group_quadric(targets[i], WQ, gfrom, gto, npairs, g)
-            _add_reduced(g, uv[targets[i]], qsum)
-    forced = -1  # the vertex that must be kept, at its own position
-    if seam_rule:
+            _add_reduced(g, mesh.uv[targets[i]], qsum)
+
+
+@njit(cache=True)
+def _forced_end(a, b, mesh, rules, scratch):
+    """The vertex the rules keep at its own position (-1: none; -2: the collapse is
+    forbidden).
+
+    Seam rule (``rules.seam_rule``), as vertex kinds: a seam vertex (two or more wedges)
+    may only move along its seam. So an edge between a seam vertex and an ordinary one
+    is a half-edge collapse onto the seam vertex, which stays where it is; an edge
+    between two seam vertices must itself be a seam edge (else it would cut a UV chart
+    in two), and may then be placed freely.
+
+    Boundary rule (``rules.boundary_rule``): likewise a boundary vertex is never merged
+    into an interior one (the hole would grow into the surface); an edge from a boundary
+    vertex to an interior one keeps the boundary vertex where it is.
+    """
+    F, FW, vhead, cnext, falive = mesh.F, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive
+    vboundary = mesh.vboundary
+    forced = -1
+    if rules.seam_rule:
         sa = _is_seam_vertex(a, FW, vhead, cnext, falive)
         sb = _is_seam_vertex(b, FW, vhead, cnext, falive)
         if sa and sb:
-            if not _is_seam_edge(a, b, F, FW, vhead, cnext, falive, efaces):
-                out_p[:] = P[b]
-                return np.inf, b
+            if not _is_seam_edge(a, b, F, FW, vhead, cnext, falive, scratch.efaces):
+                return -2
         elif sa:
             forced = a
         elif sb:
             forced = b
-    if boundary_rule and vboundary[a] != vboundary[b]:  # the boundary end stays
+    if rules.boundary_rule and vboundary[a] != vboundary[b]:  # the boundary end stays
         bkeep = a if vboundary[a] else b
         if forced != -1 and forced != bkeep:  # the seam rule wants the other end kept
-            out_p[:] = P[b]
-            return np.inf, b
+            return -2
         forced = bkeep
-    tri_a, tri_b, tri_c, bnd_a, bnd_b, link = ws
-    n_tris = n_bnd = n_link = 0
-    l2 = ((P[a, 0] - P[b, 0]) ** 2 + (P[a, 1] - P[b, 1]) ** 2 + (P[a, 2] - P[b, 2]) ** 2)
-    if w_lt != 0.0 or placement == 3:
-        n_tris, n_bnd, n_link = _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary,
-                                                efaces, mark, tick, tri_a, tri_b, tri_c, bnd_a,
-                                                bnd_b, link)
-    canny = 0.0
-    if weights[2] != 0.0:  # depends on the edge only, not on where the vertex goes
-        canny = weights[2] * _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext,
-                                            falive, efaces, inv_area, no_record)
+    return forced
+
+
+@njit(cache=True)
+def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules, terms,
+                    scratch, images):
+    """The placement (into ``scratch.p``) and the cost there, for :func:`_evaluate`."""
+    P, out_p, qsum, pr = mesh.P, scratch.p, scratch.qsum, scratch.profile
+    weights, placement = rules.weights, rules.placement
+    w_q, w_lt = weights.quadric, weights.memoryless
+    tri_a, tri_b, tri_c, bnd_a, bnd_b, link = (pr.tri_a, pr.tri_b, pr.tri_c, pr.bnd_a,
+                                               pr.bnd_b, pr.link)
+    rendered = weights.image != 0.0 or weights.entropy != 0.0
     keep = b
     if forced != -1:
         keep = forced
         out_p[:] = P[forced]
-    elif placement == 1:  # endpoints: half-edge collapse, the cheaper direction
+    elif placement == PLACE_ENDPOINTS:  # half-edge collapse, the cheaper direction
         ca = _cost_at(P[a], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
                       n_bnd, link, n_link, l2)
         cb = _cost_at(P[b], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
                       n_bnd, link, n_link, l2)
-        if weights[3] != 0.0 or weights[4] != 0.0:
-            ca += _view_cost(b, a, P[a], P, F, FW, uv, falive, vhead, cnext, efaces, weights,
-                             ictx)
-            cb += _view_cost(a, b, P[b], P, F, FW, uv, falive, vhead, cnext, efaces, weights,
-                             ictx)
+        if rendered:
+            ca += _view_cost(b, a, P[a], mesh, rules, terms, scratch, images)
+            cb += _view_cost(a, b, P[b], mesh, rules, terms, scratch, images)
         keep = a if ca < cb else b
         out_p[:] = P[keep]
         return min(ca, cb) + canny, keep
-    elif placement == 2:
+    elif placement == PLACE_MIDPOINT:
         out_p[:] = 0.5 * (P[a] + P[b])
-    elif placement == 3 and n_tris > 0:
+    elif placement == PLACE_MEMORYLESS and n_tris > 0:
         q, ok = lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
                              l2, LT_ALPHA_DEG, LT_VOLUME_WEIGHT, LT_BOUNDARY_WEIGHT)
         if ok:
             out_p[:] = q
         else:  # degenerate profile: the quadric's choice (Lindstrom & Turk fall back too)
             _optimal_point(qsum, P[a], P[b], out_p)
-    else:
+    else:  # optimal, or a profile too large for the workspace (n_tris == -1)
         _optimal_point(qsum, P[a], P[b], out_p)
     cost = _cost_at(out_p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
                     n_bnd, link, n_link, l2) + canny
-    if weights[3] != 0.0 or weights[4] != 0.0:
-        cost += _view_cost(a if keep == b else b, keep, out_p, P, F, FW, uv, falive, vhead,
-                           cnext, efaces, weights, ictx)
+    if rendered:
+        cost += _view_cost(a if keep == b else b, keep, out_p, mesh, rules, terms, scratch,
+                           images)
     return cost, keep
 
 
 @njit(cache=True)
-def _view_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, weights, ictx):
+def _view_cost(u, v, p, mesh, rules, terms, scratch, images):
     """The rendered cost terms of collapsing u into v at p, from one re-render of the
-    affected rectangles: ``weights[3]`` × equation 8 of Lindstrom & Turk 2000 plus
-    ``weights[4]`` × the sum over views of |change of the viewpoint entropy| (González
-    et al. 2008, §3), which :func:`methods.imaging.region.image_cost` leaves in the image
-    state."""
-    cost = weights[3] * _image_term(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, ictx)
-    if weights[4] != 0.0:
-        cost += weights[4] * ictx[0][14][6][3]
+    affected rectangles: ``weights.image`` × equation 8 of Lindstrom & Turk 2000 plus
+    ``weights.entropy`` × the sum over views of |change of the viewpoint entropy|
+    (González et al. 2008, §3), which :func:`methods.imaging.region.image_cost` leaves in
+    the image state."""
+    weights = rules.weights
+    cost = weights.image * _image_term(u, v, p, mesh, rules, terms, scratch, images)
+    if weights.entropy != 0.0:
+        cost += weights.entropy * images.img.ent.delta[0]
     return cost
 
 
 @njit(cache=True)
-def _image_term(u, v, p, P, F, FW, uv, falive, vhead, cnext, efaces, ictx):
+def _image_term(u, v, p, mesh, rules, terms, scratch, images):
     """Equation 8 of Lindstrom & Turk 2000 for collapsing u into v at p, with the
     texture coordinates the collapse would give (methods.imaging.region.image_cost)."""
-    img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wfrom, wto = ictx
-    targets, new_uv = r5ws[6], r5ws[7]
+    P, F, FW, uv, falive, vhead, cnext = (mesh.P, mesh.F, mesh.FW, mesh.uv, mesh.falive,
+                                          mesh.vhead, mesh.cnext)
+    wfrom, wto, efaces = scratch.wmap_from, scratch.wmap_to, scratch.efaces
+    targets, new_uv = scratch.r5.targets, scratch.r5.new_uv
     npairs = 0
     nt = 0
-    if has_uv:
+    if rules.has_uv:
         npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wfrom, wto)
         t_edge = _edge_parameter(u, v, p, P)
-        if use_r5:
-            nt = _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wfrom,
-                             wto, npairs, t_edge, r5ws)
+        if rules.use_r5:
+            nt = _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, terms.face_kappa,
+                             wfrom, wto, npairs, t_edge, scratch.r5)
         else:  # merged wedges interpolated along the edge, as _collapse does
             for i in range(npairs):
                 targets[i] = wto[i]
                 for d in range(2):
                     new_uv[i, d] = (1.0 - t_edge) * uv[wfrom[i], d] + t_edge * uv[wto[i], d]
             nt = npairs
-    return image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfrom,
-                      wto, npairs, targets, nt, new_uv, float(BACKGROUND))
+    return image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, images.img, images.tiles,
+                      images.iws, wfrom, wto, npairs, targets, nt, new_uv, float(BACKGROUND))
 
 
 @njit(cache=True)

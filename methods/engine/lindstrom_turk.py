@@ -725,38 +725,14 @@ def r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, kap
         return uv, False
     uv0 = np.empty(2)
     uv0[:] = uv_a[0]  # solve for uv - uv0: texture coordinates stay small
-    D = np.empty((5, 3))
-    G = np.empty((10, 3))
     Gsum = np.zeros((10, 3))  # Σ_T Ḡ_T (Eq. 6)
     Ho = np.zeros((2, 2))     # Σ_T Ḡ_Tᵀ Ḡ_T, split into the (s,t) block and c (Eq. 7)
     co = np.zeros(2)
-    ref = 0.0                 # Σ_T ‖Ḡ_T[:, :2]‖_F: the scale of Σ_T Ḡ_T before cancelling
-    for i in range(n_tris):
-        _oriented_volume_rows(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, i, uv0, kappa,
-                              D, G)
-        gg = 0.0
-        for r in range(10):
-            for k in range(3):
-                Gsum[r, k] += G[r, k]
-            Ho[0, 0] += G[r, 0] * G[r, 0]
-            Ho[0, 1] += G[r, 0] * G[r, 1]
-            Ho[1, 1] += G[r, 1] * G[r, 1]
-            co[0] += G[r, 0] * G[r, 2]
-            co[1] += G[r, 1] * G[r, 2]
-            gg += G[r, 0] * G[r, 0] + G[r, 1] * G[r, 1]
-        ref += math.sqrt(gg)
-    Ho[1, 0] = Ho[0, 1]
-
+    ref = _r5_volume_sums(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, uv0, kappa,
+                          Gsum, Ho, co)
     Hp = np.zeros((2, 2))
     cp = np.zeros(2)
-    for r in range(10):
-        Hp[0, 0] += Gsum[r, 0] * Gsum[r, 0]
-        Hp[0, 1] += Gsum[r, 0] * Gsum[r, 1]
-        Hp[1, 1] += Gsum[r, 1] * Gsum[r, 1]
-        cp[0] += Gsum[r, 0] * Gsum[r, 2]
-        cp[1] += Gsum[r, 1] * Gsum[r, 2]
-    Hp[1, 0] = Hp[0, 1]
-
+    _r5_preservation(Gsum, Hp, cp)
     A = np.zeros((2, 2))
     b = np.zeros(2)
     n = _add_from_gradient2(A, b, 0, Hp, cp, ref * ref, cos2)
@@ -772,6 +748,46 @@ def r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, kap
         uv[:] = 0.0
         return uv, False
     return uv, True
+
+
+@njit(cache=True)
+def _r5_volume_sums(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, uv0, kappa, Gsum, Ho,
+                    co):
+    """Over the patch's triangles, accumulate Σ_T Ḡ_T into ``Gsum`` (10, 3) (Eq. 6) and
+    Σ_T Ḡ_Tᵀ Ḡ_T into its (s, t) block ``Ho`` (2, 2) and linear part ``co`` (2,)
+    (Eq. 7). Returns Σ_T ‖Ḡ_T[:, :2]‖_F, the scale of Σ_T Ḡ_T before cancelling."""
+    D = np.empty((5, 3))
+    G = np.empty((10, 3))
+    ref = 0.0
+    for i in range(n_tris):
+        _oriented_volume_rows(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, i, uv0, kappa,
+                              D, G)
+        gg = 0.0
+        for r in range(10):
+            for k in range(3):
+                Gsum[r, k] += G[r, k]
+            Ho[0, 0] += G[r, 0] * G[r, 0]
+            Ho[0, 1] += G[r, 0] * G[r, 1]
+            Ho[1, 1] += G[r, 1] * G[r, 1]
+            co[0] += G[r, 0] * G[r, 2]
+            co[1] += G[r, 1] * G[r, 2]
+            gg += G[r, 0] * G[r, 0] + G[r, 1] * G[r, 1]
+        ref += math.sqrt(gg)
+    Ho[1, 0] = Ho[0, 1]
+    return ref
+
+
+@njit(cache=True)
+def _r5_preservation(Gsum, Hp, cp):
+    """The quadratic form of |Σ_T Ḡ_T (s, t, 1)ᵀ|² (Eq. 6): (s, t) block ``Hp`` (2, 2)
+    and linear part ``cp`` (2,), both zero on entry."""
+    for r in range(10):
+        Hp[0, 0] += Gsum[r, 0] * Gsum[r, 0]
+        Hp[0, 1] += Gsum[r, 0] * Gsum[r, 1]
+        Hp[1, 1] += Gsum[r, 1] * Gsum[r, 1]
+        cp[0] += Gsum[r, 0] * Gsum[r, 2]
+        cp[1] += Gsum[r, 1] * Gsum[r, 2]
+    Hp[1, 0] = Hp[0, 1]
 
 
 @njit(cache=True)

@@ -1,5 +1,17 @@
-"""The engine's loop (numba): queue every edge, then pop, re-cost if stale, check,
-collapse, update images, stamp and re-queue neighbours, log."""
+"""The engine's loop (numba), in the steps of meshoptimizer's ``meshopt_simplifyEdge``
+and CGAL's ``Edge_collapse::run``::
+
+    _collect_candidates     cost every edge once and queue it
+    loop:
+      _pop_current          pop entries until one is current (re-cost stale ones)
+      _check_candidate      the validity rules (methods.engine.topology._check)
+      _block                a rejected edge waits for an endpoint to change
+      _take                 log, collapse, bring the images up to date
+      _requeue_neighbours   stamp the neighbourhood, release blocked edges, queue the
+                            kept vertex's edges (and the removed faces' apexes')
+
+Every helper takes a few named structures of :mod:`methods.engine.state`.
+"""
 
 from __future__ import annotations
 
@@ -11,9 +23,22 @@ from numba.typed import Dict
 
 from methods.engine.collapse import _collapse
 from methods.engine.cost import _evaluate
-from methods.engine.policy import _N_REJECTIONS
+from methods.engine.policy import _N_REJECTIONS, REJECT_SEAM_RULE, VALID
+from methods.engine.state import (
+    BLOCKED_INITIAL,
+    EVALUATIONS,
+    LOG_CHANGED,
+    LOG_CHANGED_HEADROOM,
+    LOG_CHANGED_MIN,
+    LOG_COLLAPSES,
+    MISMATCHES,
+    Blocked,
+    Images,
+    Log,
+    Queue,
+)
 from methods.engine.topology import _check, _edge_faces, _neighbors, _third
-from methods.imaging.counters import cycles
+from methods.imaging.counters import STAT_RUN_CYCLES, STAT_TILE_REBUILDS, cycles
 from methods.imaging.region import commit_geometry, commit_render
 from methods.imaging.tiles import TILE, build_tiles
 from metrics.shading import BACKGROUND
@@ -28,240 +53,318 @@ def _push(heap, cost, a, b, sa, sb, p, keep):
 
 
 @njit(cache=True)
-def _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex, uv, has_uv,
-         target,
-         placement, weights, cos_limit, boundary_lock, seam_rule, boundary_rule, verify,
-         max_collapses,
-         borders, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws, uv_fix, kinds):
-    run_start = cycles()
-    nv = P.shape[0]
-    mark = np.zeros(nv, np.int64)
-    tick = np.zeros(1, np.int64)
-    stamp = np.zeros(nv, np.int64)
-    # pushed_at[x]: x's stamp when entries for all of its edges were last pushed. An entry
-    # older than that on either end has a newer one in the heap (every edge created
-    # since then was pushed fresh by the collapse that made it), so it can be dropped.
-    pushed_at = np.zeros(nv, np.int64)
-    nbr_u = np.empty(nv, np.int64)
-    nbr_v = np.empty_like(nbr_u)
-    efaces = np.empty(8, np.int64)
-    wmap_from = np.empty(8, np.int64)
-    wmap_to = np.empty(8, np.int64)
-    qsum = np.empty(10)
-    p = np.empty(3)
-    cap = 256  # triangles around an edge; a larger profile falls back to the quadric
-    ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)),
-          np.empty((cap, 3)), np.empty((cap, 3)))
-    tws = (np.empty(8, np.int64), np.empty(8, np.int64), np.empty(64, np.int64), np.empty(31))
-    r5ws = (np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 2)),
-            np.empty((cap, 2)), np.empty((cap, 2)), np.empty(64, np.int64), np.empty((64, 2)))
-    ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to)
-    rejects = np.zeros(_N_REJECTIONS, np.int64)
-    log_cost = np.empty(max_collapses)
-    log_removed = np.empty(max_collapses, np.int32)
-    log_kept = np.empty(max_collapses, np.int32)
-    log_pos = np.empty((max_collapses, 3))
-    log_faces = np.full((max_collapses, 2), -1, np.int64)
-    log_start = np.zeros(max_collapses + 1, np.int64)
-    log_changed = np.empty(max(16, 3 * F.shape[0]), np.int64)
-    n_changed = 0
-    evaluations = 0
-    mismatches = 0
-    # Blocked edges: rejected candidates, re-queued once when either endpoint's stamp
-    # changes. Each record is linked into both endpoints' lists and dies when re-queued,
-    # so an edge is pushed once per rejection, never once per list it sits in.
-    rec_end = np.empty((64, 2), np.int64)
-    rec_next = np.empty((64, 2), np.int64)
-    rec_live = np.zeros(64, np.bool_)
-    blk_head = np.full(nv, -1, np.int64)
-    n_rec = 0
-    # the Lindstrom-Turk, Canny and image terms look at the triangles around an edge
-    rendered = weights[3] != 0.0 or weights[4] != 0.0  # image and/or entropy terms
-    neighbourhood_cost = weights[1] != 0.0 or weights[2] != 0.0 or rendered
-    no_record = np.empty((0, 2), np.int64)
+def _cost(a, b, mesh, rules, terms, scratch, images, queue):
+    """:func:`_evaluate` of edge (a, b), counted; the placement lands in ``scratch.p``."""
+    cost, keep = _evaluate(a, b, mesh, rules, terms, scratch, images)
+    queue.tally[EVALUATIONS] += 1
+    return cost, keep
 
-    heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0), 0.0, 0.0, 0.0,
-             np.int64(0))]
-    heap.pop()
-    # With the image term, the kept vertex's edges are queued lazily too (Lindstrom &
-    # Turk 2000, §4.2.2: an edge keeps its key and is re-costed when it reaches the
-    # front); their last keys are remembered per edge.
-    lazy_new = rendered
-    last_key = Dict.empty(key_type=types.int64, value_type=types.float64)
+
+@njit(cache=True)
+def _remember(queue, rules, a, b, nv, cost):
+    """With the image term, note the key an edge was queued at (see :func:`_run`)."""
+    if rules.weights.image != 0.0 or rules.weights.entropy != 0.0:
+        queue.last_key[min(a, b) * nv + max(a, b)] = cost
+
+
+@njit(cache=True)
+def _collect_candidates(heap, mesh, rules, terms, scratch, images, queue):
+    """Cost every edge once (each interior edge from its smaller end, each boundary edge
+    from its only face) and queue it with stamps 0."""
+    F, nv = mesh.F, mesh.P.shape[0]
     for f in range(F.shape[0]):
-        if not falive[f]:
+        if not mesh.falive[f]:
             continue
         for j in range(3):
             a, b = F[f, j], F[f, (j + 1) % 3]
-            if a < b or _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 1:
-                cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights,
-                                       seam_rule, boundary_rule,
-                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
-                evaluations += 1
-                _push(heap, cost, a, b, 0, 0, p, keep)
-                if lazy_new:
-                    last_key[min(a, b) * nv + max(a, b)] = cost
+            if a < b or _edge_faces(a, b, F, mesh.vhead, mesh.cnext, mesh.falive,
+                                    scratch.efaces) == 1:
+                cost, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
+                _push(heap, cost, a, b, 0, 0, scratch.p, keep)
+                _remember(queue, rules, a, b, nv, cost)
 
-    faces = 0
-    for f in range(F.shape[0]):
-        if falive[f]:
-            faces += 1
-    n = 0
-    stopped = 1
+
+@njit(cache=True)
+def _pop_current(heap, mesh, rules, terms, scratch, images, queue):
+    """Pop until an entry is current and return it as (found, cost, fresh, a, b, keep),
+    the placement in ``scratch.p``. A stale entry (a stamp changed, or queued lazily) is
+    re-costed and pushed back (Lindstrom & Turk 2000, §4.2.2), unless a newer entry for
+    its edge was pushed since; entries of dead vertices or edges are dropped. With
+    ``verify`` the current entry is re-costed too and a differing cost is counted."""
+    stamp, pushed_at, p = queue.stamp, queue.pushed_at, scratch.p
     while len(heap) > 0:
-        if faces <= target:
-            stopped = 0
-            break
         cost, a, b, sa, sb, px, py, pz, keep = heapq.heappop(heap)
-        if not valive[a] or not valive[b]:
+        if not mesh.valive[a] or not mesh.valive[b]:
             continue
         if sa != stamp[a] or sb != stamp[b] or keep == -1:  # stale, or queued lazily
             if sa != -1 and (sa < pushed_at[a] or sb < pushed_at[b]):
                 continue  # superseded: a newer entry for this edge was pushed since
             # re-cost lazily and push back
-            if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
+            if _edge_faces(a, b, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
+                           scratch.efaces) == 0:
                 continue
-            cost, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights,
-                                       seam_rule, boundary_rule,
-                                       qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
-            evaluations += 1
+            cost, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
             _push(heap, cost, a, b, stamp[a], stamp[b], p, keep)
-            if lazy_new:
-                last_key[min(a, b) * nv + max(a, b)] = cost
+            _remember(queue, rules, a, b, mesh.P.shape[0], cost)
             continue
-        if _edge_faces(a, b, F, vhead, cnext, falive, efaces) == 0:
+        if _edge_faces(a, b, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
+                       scratch.efaces) == 0:
             continue
-        if verify:  # re-cost: the stored cost and placement must be current
-            fresh, keep = _evaluate(a, b, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                    efaces, mark, tick, ws, placement, weights,
-                                    seam_rule, boundary_rule,
-                                    qsum, p, uv, borders, inv_area, no_record, WQ, tws, ictx)
-            evaluations += 1
+        if rules.verify:  # re-cost: the stored cost and placement must be current
+            fresh, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
             if abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
-                mismatches += 1
+                queue.tally[MISMATCHES] += 1
         else:  # current stamps: the queued cost and placement are those of now
             fresh = cost
             p[0], p[1], p[2] = px, py, pz
+        return True, cost, fresh, a, b, keep
+    return False, 0.0, 0.0, np.int64(0), np.int64(0), np.int64(0)
+
+
+@njit(cache=True)
+def _check_candidate(u, v, fresh, mesh, rules, scratch):
+    """VALID, or the rejection code of the first rule that collapsing u into v at
+    ``scratch.p`` breaks (an infinite cost is the seam rule's verdict)."""
+    if fresh == np.inf:
+        return REJECT_SEAM_RULE
+    return _check(u, v, scratch.p, mesh.P, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
+                  mesh.vboundary, scratch.mark, scratch.tick, scratch.nbr_u, scratch.nbr_v,
+                  scratch.efaces, rules.cos_limit, rules.boundary_lock)
+
+
+@njit(cache=True)
+def _block(blocked, a, b):
+    """Record rejected edge (a, b) in both endpoints' blocked lists (the table doubles
+    when full); returns the table."""
+    n_rec = blocked.count[0]
+    if n_rec == blocked.live.shape[0]:
+        blocked = Blocked(np.concatenate((blocked.end, np.empty_like(blocked.end))),
+                          np.concatenate((blocked.next, np.empty_like(blocked.next))),
+                          np.concatenate((blocked.live, np.zeros_like(blocked.live))),
+                          blocked.head, blocked.count)
+    blocked.end[n_rec, 0] = a
+    blocked.end[n_rec, 1] = b
+    blocked.next[n_rec, 0] = blocked.head[a]
+    blocked.next[n_rec, 1] = blocked.head[b]
+    blocked.live[n_rec] = True
+    blocked.head[a] = n_rec
+    blocked.head[b] = n_rec
+    blocked.count[0] = n_rec + 1
+    return blocked
+
+
+@njit(cache=True)
+def _log_collapse(log, u, v, fresh, p):
+    """Write collapse (u into v at p, cost ``fresh``) to the log, first making room for
+    its changed faces; returns the log (its changed list may have grown)."""
+    n, n_changed = log.count[LOG_COLLAPSES], log.count[LOG_CHANGED]
+    if n_changed + LOG_CHANGED_HEADROOM > log.changed.shape[0]:
+        log = Log(log.cost, log.removed, log.kept, log.pos, log.faces, log.start,
+                  np.concatenate((log.changed, np.empty_like(log.changed))), log.count)
+    log.cost[n] = fresh
+    log.removed[n] = u
+    log.kept[n] = v
+    log.pos[n] = p
+    return log
+
+
+@njit(cache=True)
+def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
+    """Collapse u into v at ``scratch.p``: note whether v moves, collapse, log the
+    removed faces, and bring the images (or face ids) up to date. Returns (faces
+    removed, images) — the tile index is rebuilt when a commit overflows it."""
+    P, p = mesh.P, scratch.p
+    if p[0] != P[v, 0] or p[1] != P[v, 1] or p[2] != P[v, 2]:
+        mesh.moved[v] = True
+    n = log.count[LOG_COLLAPSES]
+    removed, n_changed = _collapse(u, v, p.copy(), mesh, rules, terms, scratch, log.changed,
+                                   log.count[LOG_CHANGED], kinds)
+    log.count[LOG_CHANGED] = n_changed
+    efaces = scratch.efaces
+    for i in range(min(removed, 2)):
+        log.faces[n, i] = efaces[i]
+    if rules.weights.image != 0.0 or rules.weights.entropy != 0.0:
+        img, tiles, iws = images.img, images.tiles, images.iws
+        ok, changed = commit_geometry(v, efaces, removed, P, mesh.F, mesh.FW, mesh.uv,
+                                      mesh.falive, mesh.vhead, mesh.cnext, mesh.valive, img,
+                                      tiles, iws)
+        if not ok:
+            tiles = build_tiles(img.fbox, mesh.falive, TILE, -(-img.Y.shape[2] // TILE),
+                                -(-img.Y.shape[1] // TILE))
+            img.stats[STAT_TILE_REBUILDS] += 1
+            images = Images(img, tiles, iws)
+        commit_render(changed, P, mesh.F, mesh.FW, mesh.uv, mesh.falive, img, images.tiles,
+                      iws, float(BACKGROUND))
+    log.count[LOG_COLLAPSES] = n + 1
+    log.start[n + 1] = log.count[LOG_CHANGED]
+    return removed, images
+
+
+@njit(cache=True)
+def _release_blocked(heap, blocked, w, cost, p, valive):
+    """Re-queue w's blocked edges (their validity may have changed) for re-costing,
+    each record once, and empty w's list."""
+    j = blocked.head[w]
+    while j != -1:
+        side = 0 if blocked.end[j, 0] == w else 1
+        if blocked.live[j]:
+            blocked.live[j] = False
+            o = blocked.end[j, 1 - side]
+            if valive[o]:
+                _push(heap, cost, w, o, -1, -1, p, -1)
+        j = blocked.next[j, side]
+    blocked.head[w] = -1
+
+
+@njit(cache=True)
+def _requeue_neighbours(heap, u, v, cost, fresh, mesh, rules, terms, scratch, images,
+                        queue, blocked):
+    """After collapsing u into v: stamp v, and its neighbours when costs depend on the
+    triangles around an edge (a quadric cost of (w, x) depends only on w and x, which
+    did not change); release the neighbours' blocked edges; queue v's edges afresh."""
+    weights, stamp, p, nbr_v = rules.weights, queue.stamp, scratch.p, scratch.nbr_v
+    rendered = weights.image != 0.0 or weights.entropy != 0.0  # image and/or entropy
+    neighbourhood_cost = weights.memoryless != 0.0 or weights.canny != 0.0 or rendered
+    nv = mesh.P.shape[0]
+    m = _neighbors(v, mesh.F, mesh.vhead, mesh.cnext, mesh.falive, scratch.mark,
+                   scratch.tick, nbr_v)
+    stamp[v] += 1
+    for i in range(m):
+        w = nbr_v[i]
+        if neighbourhood_cost and w != v:
+            stamp[w] += 1
+        _release_blocked(heap, blocked, w, cost, p, mesh.valive)
+    for i in range(m):
+        w = nbr_v[i]
+        if w == v:
+            continue
+        if rendered:  # the edge's last key, re-costed when it reaches the front
+            key = fresh
+            kv, ku = min(v, w) * nv + max(v, w), min(u, w) * nv + max(u, w)
+            if kv in queue.last_key:
+                key = queue.last_key[kv]
+            elif ku in queue.last_key:
+                key = queue.last_key[ku]
+            _push(heap, key, v, w, stamp[v], stamp[w], p, -1)
+            continue
+        c2, k2 = _cost(v, w, mesh, rules, terms, scratch, images, queue)
+        _push(heap, c2, v, w, stamp[v], stamp[w], p, k2)
+    queue.pushed_at[v] = stamp[v]
+
+
+@njit(cache=True)
+def _requeue_apexes(heap, u, v, removed, mesh, rules, terms, scratch, images, queue, log):
+    """The apexes of the removed faces lost a face, which can change whether they are
+    seam vertices (and so the seam rule's verdict on their edges): give their edges
+    fresh entries. (With neighbourhood costs they were stamped already and are
+    re-costed lazily, so only the seam rule with pure quadric costs needs this.)"""
+    stamp, nbr_u = queue.stamp, scratch.nbr_u
+    n = log.count[LOG_COLLAPSES]
+    for i in range(min(removed, 2)):
+        x = log.faces[n - 1, i]
+        x = _third(mesh.F, x, u, v)
+        if x == -1 or not mesh.valive[x]:
+            continue
+        stamp[x] += 1
+        mx = _neighbors(x, mesh.F, mesh.vhead, mesh.cnext, mesh.falive, scratch.mark,
+                        scratch.tick, nbr_u)
+        for i2 in range(mx):
+            y = nbr_u[i2]
+            if y == x:
+                continue
+            c2, k2 = _cost(x, y, mesh, rules, terms, scratch, images, queue)
+            _push(heap, c2, x, y, stamp[x], stamp[y], scratch.p, k2)
+        queue.pushed_at[x] = stamp[x]
+
+
+@njit(cache=True)
+def _new_log(max_collapses, m):
+    """An empty :data:`~methods.engine.state.Log` for ``max_collapses`` collapses of a
+    mesh of ``m`` faces."""
+    return Log(np.empty(max_collapses), np.empty(max_collapses, np.int32),
+               np.empty(max_collapses, np.int32), np.empty((max_collapses, 3)),
+               np.full((max_collapses, 2), -1, np.int64), np.zeros(max_collapses + 1, np.int64),
+               np.empty(max(LOG_CHANGED_MIN, 3 * m), np.int64), np.zeros(2, np.int64))
+
+
+@njit(cache=True)
+def _new_queue(nv):
+    """An empty :data:`~methods.engine.state.Queue` (and its heap) for ``nv`` vertices.
+
+    ``pushed_at[x]``: x's stamp when entries for all of its edges were last pushed. An
+    entry older than that on either end has a newer one in the heap (every edge created
+    since then was pushed fresh by the collapse that made it), so it can be dropped.
+    ``last_key``: with the image term, the kept vertex's edges are queued lazily too
+    (Lindstrom & Turk 2000, §4.2.2: an edge keeps its key and is re-costed when it
+    reaches the front); their last keys are remembered per edge."""
+    heap = [(0.0, np.int64(0), np.int64(0), np.int64(0), np.int64(0), 0.0, 0.0, 0.0,
+             np.int64(0))]
+    heap.pop()
+    last_key = Dict.empty(key_type=types.int64, value_type=types.float64)
+    return heap, Queue(np.zeros(nv, np.int64), np.zeros(nv, np.int64), last_key,
+                       np.zeros(2, np.int64))
+
+
+@njit(cache=True)
+def _run(mesh, rules, terms, scratch, images, kinds):
+    """Collapse edges of ``mesh`` until ``rules.target`` faces remain, no valid collapse
+    does, or ``rules.max_collapses`` were taken.
+
+    Returns (stopped (1: no valid collapse remains), evaluations, mismatches, rejects
+    (counts by rejection code - 1), log (:data:`~methods.engine.state.Log`, trimmed
+    by the caller to its ``count``))."""
+    run_start = cycles()
+    nv, F = mesh.P.shape[0], mesh.F
+    heap, queue = _new_queue(nv)
+    rejects = np.zeros(_N_REJECTIONS, np.int64)
+    log = _new_log(rules.max_collapses, F.shape[0])
+    # Blocked edges: rejected candidates, re-queued once when either endpoint's stamp
+    # changes. Each record is linked into both endpoints' lists and dies when re-queued,
+    # so an edge is pushed once per rejection, never once per list it sits in.
+    blocked = Blocked(np.empty((BLOCKED_INITIAL, 2), np.int64),
+                      np.empty((BLOCKED_INITIAL, 2), np.int64),
+                      np.zeros(BLOCKED_INITIAL, np.bool_), np.full(nv, -1, np.int64),
+                      np.zeros(1, np.int64))
+    # Collect: every edge costed once, at the original mesh.
+    _collect_candidates(heap, mesh, rules, terms, scratch, images, queue)
+    faces = 0
+    for f in range(F.shape[0]):
+        if mesh.falive[f]:
+            faces += 1
+    stopped = 1
+    while len(heap) > 0:
+        if faces <= rules.target:
+            stopped = 0
+            break
+        # Pop the cheapest current candidate (stale ones are re-costed on the way).
+        found, cost, fresh, a, b, keep = _pop_current(heap, mesh, rules, terms, scratch,
+                                                      images, queue)
+        if not found:
+            break
         u = a if keep == b else b
         v = keep
-        if fresh == np.inf:
-            code = 7  # seam rule
-        else:
-            code = _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u,
-                          nbr_v, efaces, cos_limit, boundary_lock)
-        if code != 0:
+        # Check it; a rejected edge waits until an endpoint changes.
+        code = _check_candidate(u, v, fresh, mesh, rules, scratch)
+        if code != VALID:
             rejects[code - 1] += 1
-            if n_rec == rec_live.shape[0]:
-                rec_end = np.concatenate((rec_end, np.empty_like(rec_end)))
-                rec_next = np.concatenate((rec_next, np.empty_like(rec_next)))
-                rec_live = np.concatenate((rec_live, np.zeros_like(rec_live)))
-            rec_end[n_rec, 0] = a
-            rec_end[n_rec, 1] = b
-            rec_next[n_rec, 0] = blk_head[a]
-            rec_next[n_rec, 1] = blk_head[b]
-            rec_live[n_rec] = True
-            blk_head[a] = n_rec
-            blk_head[b] = n_rec
-            n_rec += 1
+            blocked = _block(blocked, a, b)
             continue
-        if n >= max_collapses:
+        if log.count[LOG_COLLAPSES] >= rules.max_collapses:
             break
-        if n_changed + 4096 > log_changed.shape[0]:  # a vertex has far fewer faces
-            log_changed = np.concatenate((log_changed, np.empty_like(log_changed)))
-        log_cost[n] = fresh
-        log_removed[n] = u
-        log_kept[n] = v
-        log_pos[n] = p
-        if p[0] != P[v, 0] or p[1] != P[v, 1] or p[2] != P[v, 2]:
-            moved[v] = True
-        removed, n_changed = _collapse(u, v, p.copy(), P, Q, F, FW, falive, vhead, cnext,
-                                       valive, wedge_vertex, uv, has_uv, efaces, wmap_from,
-                                       wmap_to, log_changed, n_changed, use_r5, face_kappa,
-                                       r5ws, WQ, tws, uv_fix, kinds)
-        for i in range(min(removed, 2)):
-            log_faces[n, i] = efaces[i]
-        if rendered:  # bring the images (or face ids) up to date
-            ok, changed = commit_geometry(v, efaces, removed, P, F, FW, uv, falive, vhead,
-                                          cnext, valive, img, tiles, iws)
-            if not ok:
-                tiles = build_tiles(img[6], falive, TILE, -(-img[4].shape[2] // TILE),
-                                    -(-img[4].shape[1] // TILE))
-                img[11][5] += 1
-                ictx = (img, tiles, iws, r5ws, face_kappa, use_r5, has_uv, wmap_from, wmap_to)
-            commit_render(changed, P, F, FW, uv, falive, img, tiles, iws, float(BACKGROUND))
-        n += 1
-        log_start[n] = n_changed
+        # Take it: log, collapse, update the images.
+        log = _log_collapse(log, u, v, fresh, scratch.p)
+        removed, images = _take(u, v, mesh, rules, terms, scratch, images, log, kinds)
         faces -= removed
-        vboundary[v] = vboundary[v] or vboundary[u]  # a boundary vertex stays one
-        # Stamp v, and its neighbours when costs depend on the triangles around an edge
-        # (a quadric cost of (w, x) depends only on w and x, which did not change);
-        # requeue the neighbours' blocked edges (their validity may have changed), and
-        # push fresh entries for v's edges.
-        m = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr_v)
-        stamp[v] += 1
-        for i in range(m):
-            w = nbr_v[i]
-            if neighbourhood_cost and w != v:
-                stamp[w] += 1
-            j = blk_head[w]
-            while j != -1:
-                side = 0 if rec_end[j, 0] == w else 1
-                if rec_live[j]:
-                    rec_live[j] = False
-                    o = rec_end[j, 1 - side]
-                    if valive[o]:
-                        _push(heap, cost, w, o, -1, -1, p, -1)
-                j = rec_next[j, side]
-            blk_head[w] = -1
-        for i in range(m):
-            w = nbr_v[i]
-            if w == v:
-                continue
-            if lazy_new:  # the edge's last key, re-costed when it reaches the front
-                key = fresh
-                kv, ku = min(v, w) * nv + max(v, w), min(u, w) * nv + max(u, w)
-                if kv in last_key:
-                    key = last_key[kv]
-                elif ku in last_key:
-                    key = last_key[ku]
-                _push(heap, key, v, w, stamp[v], stamp[w], p, -1)
-                continue
-            c2, k2 = _evaluate(v, w, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                               efaces, mark, tick, ws, placement, weights,
-                               seam_rule, boundary_rule, qsum,
-                               p, uv, borders, inv_area, no_record, WQ, tws, ictx)
-            evaluations += 1
-            _push(heap, c2, v, w, stamp[v], stamp[w], p, k2)
-        pushed_at[v] = stamp[v]
-        # The apexes of the removed faces lost a face, which can change whether they are
-        # seam vertices (and so the seam rule's verdict on their edges): give them fresh
-        # entries too. (With neighbourhood costs they were stamped above and are
-        # re-costed lazily.)
-        if seam_rule and not neighbourhood_cost:
-            for i in range(min(removed, 2)):
-                x = log_faces[n - 1, i]
-                x = _third(F, x, u, v)
-                if x == -1 or not valive[x]:
-                    continue
-                stamp[x] += 1
-                mx = _neighbors(x, F, vhead, cnext, falive, mark, tick, nbr_u)
-                for i2 in range(mx):
-                    y = nbr_u[i2]
-                    if y == x:
-                        continue
-                    c2, k2 = _evaluate(x, y, P, Q, F, FW, vhead, cnext, falive, vboundary,
-                                       efaces, mark, tick, ws, placement, weights,
-                                       seam_rule, boundary_rule,
-                                       qsum, p, uv, borders, inv_area, no_record, WQ,
-                                       tws, ictx)
-                    evaluations += 1
-                    _push(heap, c2, x, y, stamp[x], stamp[y], p, k2)
-                pushed_at[x] = stamp[x]
-    if faces <= target:
+        mesh.vboundary[v] = mesh.vboundary[v] or mesh.vboundary[u]  # stays a boundary
+        # Stamp and re-queue: the costs around v changed.
+        _requeue_neighbours(heap, u, v, cost, fresh, mesh, rules, terms, scratch, images,
+                            queue, blocked)
+        w = rules.weights
+        if rules.seam_rule and not (w.memoryless != 0.0 or w.canny != 0.0
+                                    or w.image != 0.0 or w.entropy != 0.0):
+            _requeue_apexes(heap, u, v, removed, mesh, rules, terms, scratch, images, queue,
+                            log)
+    if faces <= rules.target:
         stopped = 0
-    img[11][4] += cycles() - run_start
-    return (stopped, n, evaluations, mismatches, rejects, log_removed[:n], log_kept[:n],
-            log_pos[:n], log_faces[:n], log_start[:n + 1], log_changed[:n_changed],
-            log_cost[:n])
+    images.img.stats[STAT_RUN_CYCLES] += cycles() - run_start
+    return (stopped, queue.tally[EVALUATIONS], queue.tally[MISMATCHES], rejects, log)

@@ -10,10 +10,40 @@ import numpy as np
 
 from bench.mesh import Mesh
 
-PLACEMENTS = {"optimal": 0, "endpoints": 1, "midpoint": 2, "memoryless": 3}
+#: Placement codes, as the numba kernels see them.
+PLACE_OPTIMAL = 0
+PLACE_ENDPOINTS = 1
+PLACE_MIDPOINT = 2
+PLACE_MEMORYLESS = 3
+
+PLACEMENTS = {"optimal": PLACE_OPTIMAL, "endpoints": PLACE_ENDPOINTS,
+              "midpoint": PLACE_MIDPOINT, "memoryless": PLACE_MEMORYLESS}
 
 
-#: Rejection counters, in the order of the kernel's ``rejects`` array.
+# The validity rules, checked in this order by methods.engine.topology._check (the seam
+# rule is the cost function's verdict, an infinite cost). A candidate collapse of u into
+# v is rejected when
+#   - non-manifold edge: the edge has more than two faces;
+#   - link condition: u and v share a neighbour that is not an apex of the edge's faces
+#     (the collapse would pinch the surface);
+#   - boundary lock: with ``boundary_lock``, either end is on the boundary;
+#   - boundary pinch: an interior edge joins two boundary vertices (two boundary loops
+#     would meet at one vertex);
+#   - duplicate face: a face of u, renamed to v, would coincide with a face of v;
+#   - fold-over: a moved face turns its normal by more than ``max_normal_rotation`` or
+#     loses its area;
+#   - seam rule: see methods.engine.cost._forced_end.
+# Each code is 1 + its name's index in REJECTIONS, the order of the ``rejects`` counts.
+VALID = 0
+REJECT_LINK_CONDITION = 1
+REJECT_BOUNDARY_PINCH = 2
+REJECT_DUPLICATE_FACE = 3
+REJECT_FOLD_OVER = 4
+REJECT_NON_MANIFOLD = 5
+REJECT_BOUNDARY_LOCK = 6
+REJECT_SEAM_RULE = 7
+
+#: Rejection counters by name, in the order of the kernel's ``rejects`` array.
 REJECTIONS = ("link condition", "boundary pinch", "duplicate face", "fold-over",
               "non-manifold edge", "boundary lock", "seam rule")
 

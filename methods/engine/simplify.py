@@ -4,6 +4,7 @@ render vertices rebuilt from the surviving wedges."""
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
@@ -11,6 +12,21 @@ from bench.mesh import Mesh
 from methods.engine.loop import _run
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
 from methods.engine.quadrics import _boundary_corners, initial_quadrics, wedge_quadrics
+from methods.engine.state import (
+    KIND_STRANDED,
+    KIND_STRANDED_WEDGES,
+    KIND_TWIN,
+    LOG_CHANGED,
+    LOG_COLLAPSES,
+    N_KINDS,
+    WEDGE_QUADRIC_SIZE,
+    Images,
+    MeshArrays,
+    Rules,
+    Terms,
+    Weights,
+    new_scratch,
+)
 from methods.engine.topology import _corner_lists, vboundary_of
 from methods.engine.wedges import _face_kappa
 from methods.imaging.state import dummy_state
@@ -51,6 +67,47 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     if target_faces < 1:
         raise ValueError(f"target_faces must be at least 1, got {target_faces}")
     start = time.perf_counter()
+    prep = _prepare(mesh, policy, image)
+    if policy.canny_weight != 0.0 and (borders is None or mesh.uv is None):
+        raise ValueError("the Canny term needs texture borders and UVs; pass borders= "
+                         "(methods.engine.canny.texture_borders) for a mesh with UVs")
+    arrays = _quadrics(mesh, policy, prep)
+    rules = _rules(mesh, policy, image, prep, target_faces, verify, max_collapses)
+    terms = _terms(policy, prep, borders, rules)
+    images = _image_state(mesh, image, arrays, prep, _texture_quadrics(mesh, policy))
+    stopped, evaluations, mismatches, rejects, log = _run(
+        arrays, rules, terms, new_scratch(len(arrays.P)), images, prep.kinds)
+    image_stats = {} if image is None else image.statistics(
+        mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
+        arrays.vhead, arrays.cnext, arrays.valive, prep.lo, prep.scale)
+    simplified = _extract(mesh, np.where(arrays.moved[:, None],
+                                         arrays.P * prep.scale + prep.lo, prep.P0),
+                          arrays.FW[arrays.falive], arrays.wedge_vertex,
+                          arrays.uv if rules.has_uv else None)
+    faces = int(arrays.falive.sum())
+    n = int(log.count[LOG_COLLAPSES])
+    reason = None
+    if stopped:
+        counts = ", ".join(f"{name} {int(c)}" for name, c in zip(REJECTIONS, rejects) if c)
+        reason = (f"no valid collapse remains at {faces} faces (target {target_faces}); "
+                  f"candidates rejected: {counts or 'none'}")
+    stats = _statistics(n, evaluations, mismatches, rejects, prep.kinds, verify,
+                        time.perf_counter() - start)
+    stats.update(image_stats)
+    out_log, Q, valive = _log_in_input_numbering(log, prep, arrays)
+    return EngineResult(simplified, reason, stats, out_log, quadrics=Q, vertex_alive=valive,
+                        images=None if image is None else images.img.Y)
+
+
+#: What :func:`_prepare` hands on: positions ``P0`` (input units) and ``P`` (unit
+#: diagonal) after renumbering, the frame ``lo``/``scale``, the engine's face and wedge
+#: arrays, the permutations (None without renumbering) and the ``kinds`` counters.
+_Prepared = namedtuple("_Prepared", "P0 P lo scale mesh boundary_corners vperm fperm kinds")
+
+
+def _prepare(mesh: Mesh, policy: Policy, image) -> _Prepared:
+    """Welded arrays at unit bounding-box diagonal, renumbered along a Morton curve
+    with the image term; the quadrics are left to :func:`_quadrics`."""
     w = mesh.welded
     # Work on geometry normalised to a unit bounding-box diagonal, so that cost terms of
     # different kinds (quadric, Lindstrom-Turk, Canny area ratios) add up the same way
@@ -68,95 +125,125 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     vboundary = vboundary_of(w, nv)
     vperm = fperm = None
     if image is not None:
-        # Renumber vertices and faces along a Morton curve, so that the faces and
-        # vertices of a screen region sit close together in memory (the image term
-        # reads them per pixel rectangle); ids in the log are mapped back at the end.
-        vperm = np.argsort(_morton(P), kind="stable")
-        inverse = np.empty_like(vperm)
-        inverse[vperm] = np.arange(nv)
-        P0, P, vboundary = P0[vperm], P[vperm], vboundary[vperm]
-        F, wedge_vertex = inverse[F], inverse[wedge_vertex]
-        fperm = np.argsort(_morton(P[F].mean(axis=1)), kind="stable")
-        F, FW, boundary_corners = F[fperm], FW[fperm], boundary_corners[fperm]
+        P0, P, vboundary, F, FW, wedge_vertex, boundary_corners, vperm, fperm = _renumber(
+            P0, P, vboundary, F, FW, wedge_vertex, boundary_corners)
     falive = np.ones(len(F), bool)
     vhead, cnext = _corner_lists(F, nv)
     valive = np.zeros(nv, bool)
     valive[np.unique(F)] = True
-    moved = np.zeros(nv, bool)
+    uv = mesh.uv.copy() if mesh.uv is not None else np.zeros((1, 2))
+    arrays = MeshArrays(P, None, F, FW, falive, vhead, cnext, valive, vboundary,
+                        wedge_vertex, uv, np.zeros(nv, bool), None)
+    return _Prepared(P0, P, lo, scale, arrays, boundary_corners, vperm, fperm,
+                     np.zeros(N_KINDS, np.int64))
+
+
+def _renumber(P0, P, vboundary, F, FW, wedge_vertex, boundary_corners):
+    """Renumber vertices and faces along a Morton curve, so that the faces and vertices
+    of a screen region sit close together in memory (the image term reads them per
+    pixel rectangle); ids in the log are mapped back at the end."""
+    nv = len(P)
+    vperm = np.argsort(_morton(P), kind="stable")
+    inverse = np.empty_like(vperm)
+    inverse[vperm] = np.arange(nv)
+    P0, P, vboundary = P0[vperm], P[vperm], vboundary[vperm]
+    F, wedge_vertex = inverse[F], inverse[wedge_vertex]
+    fperm = np.argsort(_morton(P[F].mean(axis=1)), kind="stable")
+    F, FW, boundary_corners = F[fperm], FW[fperm], boundary_corners[fperm]
+    return P0, P, vboundary, F, FW, wedge_vertex, boundary_corners, vperm, fperm
+
+
+def _quadrics(mesh: Mesh, policy: Policy, prep: _Prepared) -> MeshArrays:
+    """The engine's mesh arrays with their quadrics: per-vertex planes (Garland &
+    Heckbert 1997, boundary planes weighted by ``boundary_weight``), or with
+    ``texture_weight`` per-wedge 5-D quadrics (their 1998 paper)."""
+    a = prep.mesh
+    texture_quadrics = _texture_quadrics(mesh, policy)
+    Q = initial_quadrics(a.P, a.F, prep.boundary_corners, policy.boundary_weight,
+                         faces=not texture_quadrics)
+    WQ = (wedge_quadrics(a.P, a.F, a.FW, a.uv, policy.texture_weight) if texture_quadrics
+          else np.zeros((1, WEDGE_QUADRIC_SIZE)))
+    return a._replace(Q=Q, WQ=WQ)
+
+
+def _texture_quadrics(mesh: Mesh, policy: Policy) -> bool:
+    return policy.texture_weight > 0 and mesh.uv is not None and policy.quadric_weight != 0
+
+
+def _rules(mesh: Mesh, policy: Policy, image, prep: _Prepared, target_faces, verify,
+           max_collapses) -> Rules:
+    """The policy as the kernel's codes (:data:`methods.engine.state.Rules`)."""
     has_uv = mesh.uv is not None
-    uv = mesh.uv.copy() if has_uv else np.zeros((1, 2))
-    if policy.canny_weight != 0.0 and (borders is None or not has_uv):
-        raise ValueError("the Canny term needs texture borders and UVs; pass borders= "
-                         "(methods.engine.canny.texture_borders) for a mesh with UVs")
+    weights = Weights(float(policy.quadric_weight), float(policy.memoryless_weight),
+                      float(policy.canny_weight),
+                      float(0.0 if image is None else image.weight),
+                      float(0.0 if image is None else getattr(image, "entropy_weight", 0.0)))
+    nv = len(prep.P)
+    limit = max(1, nv) if max_collapses is None else max(0, int(max_collapses))
+    return Rules(PLACEMENTS[policy.placement], weights,
+                 math.cos(math.radians(policy.max_normal_rotation)),
+                 bool(policy.boundary_lock),
+                 bool(policy.seam_rule and mesh.n_vertices != mesh.welded.n_vertices),
+                 bool(policy.boundary_rule), bool(verify), bool(has_uv),
+                 bool(policy.r5_uv and has_uv and policy.placement == "memoryless"),
+                 bool(policy.uv_correction and has_uv), int(target_faces), limit)
+
+
+def _terms(policy: Policy, prep: _Prepared, borders, rules: Rules) -> Terms:
+    """Inputs of the Canny and R^5 terms: texture borders, 1 / the total area at unit
+    diagonal, κ per face."""
+    P, F, FW, uv = prep.mesh.P, prep.mesh.F, prep.mesh.FW, prep.mesh.uv
     borders_arr = (np.ascontiguousarray(borders, dtype=np.bool_) if borders is not None
                    else np.zeros((1, 1), np.bool_))
     area = float(np.linalg.norm(np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]),
                                 axis=1).sum() / 2)
     inv_area = 1.0 / area if area > 0 else 0.0
+    face_kappa = _face_kappa(P, F, FW, uv) if rules.use_r5 else np.ones(1)
+    return Terms(borders_arr, inv_area, face_kappa)
 
-    texture_quadrics = policy.texture_weight > 0 and has_uv and policy.quadric_weight != 0
-    Q = initial_quadrics(P, F, boundary_corners, policy.boundary_weight,
-                         faces=not texture_quadrics)
-    WQ = (wedge_quadrics(P, F, FW, uv, policy.texture_weight) if texture_quadrics
-          else np.zeros((1, 31)))
 
-    use_r5 = bool(policy.r5_uv and has_uv and policy.placement == "memoryless")
-    face_kappa = _face_kappa(P, F, FW, uv) if use_r5 else np.ones(1)
-    cos_limit = math.cos(math.radians(policy.max_normal_rotation))
-    weights = np.array([policy.quadric_weight, policy.memoryless_weight, policy.canny_weight,
-                        0.0 if image is None else image.weight,
-                        0.0 if image is None else getattr(image, "entropy_weight", 0.0)],
-                       np.float64)
+def _image_state(mesh: Mesh, image, a: MeshArrays, prep: _Prepared, texture_quadrics):
+    """The image term's state with the original's images rendered, or placeholders of
+    the same types without it."""
     if image is None:
-        img, tiles, iws = dummy_state()
-    else:
-        if texture_quadrics:
-            raise ValueError("the image term does not combine with texture quadrics")
-        img, tiles, iws = image.state(mesh, P, F, FW, uv, falive, vhead, cnext, valive, lo,
-                                      scale)
-    limit = max(1, nv) if max_collapses is None else max(0, int(max_collapses))
-    kinds = np.zeros(3, np.int64)
-    out = _run(P, Q, F, FW, falive, vhead, cnext, valive, vboundary, wedge_vertex,
-               uv, has_uv, int(target_faces), PLACEMENTS[policy.placement], weights, cos_limit,
-               bool(policy.boundary_lock),
-               bool(policy.seam_rule and mesh.n_vertices != w.n_vertices),
-               bool(policy.boundary_rule), bool(verify),
-               limit, borders_arr, inv_area, moved, use_r5, face_kappa, WQ, img, tiles, iws,
-               bool(policy.uv_correction and has_uv), kinds)
-    (stopped, n, evaluations, mismatches, rejects, log_removed, log_kept, log_pos,
-     log_faces, log_start, log_changed, log_cost) = out
-    image_stats = {} if image is None else image.statistics(
-        mesh, img, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale)
-    P = np.where(moved[:, None], P * scale + lo, P0)
+        return Images(*dummy_state())
+    if texture_quadrics:
+        raise ValueError("the image term does not combine with texture quadrics")
+    return Images(*image.state(mesh, a.P, a.F, a.FW, a.uv, a.falive, a.vhead, a.cnext,
+                               a.valive, prep.lo, prep.scale))
 
-    simplified = _extract(mesh, P, FW[falive], wedge_vertex, uv if has_uv else None)
-    faces = int(falive.sum())
-    reason = None
-    if stopped:
-        counts = ", ".join(f"{name} {int(c)}" for name, c in zip(REJECTIONS, rejects) if c)
-        reason = (f"no valid collapse remains at {faces} faces (target {target_faces}); "
-                  f"candidates rejected: {counts or 'none'}")
-    seconds = time.perf_counter() - start
+
+def _statistics(n, evaluations, mismatches, rejects, kinds, verify, seconds) -> dict:
+    """The run's counters as :attr:`EngineResult.stats`."""
     stats = {"collapses": int(n), "cost_evaluations": int(evaluations),
              "rejections": {name: int(c) for name, c in zip(REJECTIONS, rejects)},
              "engine_seconds": seconds,
              "collapses_per_second": n / seconds if seconds > 0 else None}
     # González et al. 2008, Algorithm 2: every collapse is a real edge; see _count_kinds
-    stats.update(twin_collapses=int(kinds[0]), stranded_collapses=int(kinds[1]),
-                 stranded_wedges=int(kinds[2]))
+    stats.update(twin_collapses=int(kinds[KIND_TWIN]),
+                 stranded_collapses=int(kinds[KIND_STRANDED]),
+                 stranded_wedges=int(kinds[KIND_STRANDED_WEDGES]))
     if verify:
         stats["lazy_mismatches"] = int(mismatches)
-    stats.update(image_stats)
-    if vperm is not None:  # back to the input's numbering
-        log_removed, log_kept = vperm[log_removed], vperm[log_kept]
-        log_faces = np.where(log_faces >= 0, fperm[np.maximum(log_faces, 0)], -1)
-        log_changed = fperm[log_changed]
+    return stats
+
+
+def _log_in_input_numbering(log, prep: _Prepared, a: MeshArrays):
+    """The kernel's log trimmed to its collapses, in the input's vertex and face
+    numbering and units, with the final quadrics and live vertices."""
+    n, n_changed = int(log.count[LOG_COLLAPSES]), int(log.count[LOG_CHANGED])
+    removed, kept, faces = log.removed[:n], log.kept[:n], log.faces[:n]
+    changed, Q, valive = log.changed[:n_changed], a.Q, a.valive
+    if prep.vperm is not None:  # back to the input's numbering
+        vperm, fperm = prep.vperm, prep.fperm
+        removed, kept = vperm[removed], vperm[kept]
+        faces = np.where(faces >= 0, fperm[np.maximum(faces, 0)], -1)
+        changed = fperm[changed]
         Q, valive = Q[np.argsort(vperm)], valive[np.argsort(vperm)]
-    log = {"removed": log_removed, "kept": log_kept, "position": log_pos * scale + lo,
-           "removed_faces": log_faces, "changed_start": log_start,
-           "changed_faces": log_changed, "cost": log_cost}
-    return EngineResult(simplified, reason, stats, log, quadrics=Q, vertex_alive=valive,
-                        images=None if image is None else img[4])
+    out = {"removed": removed, "kept": kept, "position": log.pos[:n] * prep.scale + prep.lo,
+           "removed_faces": faces, "changed_start": log.start[:n + 1],
+           "changed_faces": changed, "cost": log.cost[:n]}
+    return out, Q, valive
 
 
 def _morton(points: np.ndarray) -> np.ndarray:

@@ -9,6 +9,16 @@ import math
 import numpy as np
 from numba import njit
 
+from methods.engine.policy import (
+    REJECT_BOUNDARY_LOCK,
+    REJECT_BOUNDARY_PINCH,
+    REJECT_DUPLICATE_FACE,
+    REJECT_FOLD_OVER,
+    REJECT_LINK_CONDITION,
+    REJECT_NON_MANIFOLD,
+    VALID,
+)
+
 
 @njit(cache=True)
 def _compact(v, vhead, cnext, falive):
@@ -88,10 +98,11 @@ def _normal3(ax, ay, az, bx, by, bz, cx, cy, cz):
 @njit(cache=True)
 def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nbr_v,
            efaces, cos_limit, boundary_lock):
-    """0 if collapsing u into v at p is valid, else 1 + index into REJECTIONS."""
+    """VALID if collapsing u into v at p is valid, else the REJECT_* code of the first
+    rule it breaks (methods.engine.policy lists the rules)."""
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     if k > 2 or k == 0:
-        return 5  # non-manifold edge (k == 0 cannot happen for a live edge)
+        return REJECT_NON_MANIFOLD  # (k == 0 cannot happen for a live edge)
     nu = _neighbors(u, F, vhead, cnext, falive, mark, tick, nbr_u)
     nv = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr_v)  # mark now holds v's
     t = tick[0]
@@ -101,14 +112,14 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
         if w != v and w != u and mark[w] == t:
             common += 1
     if common != k:
-        return 1  # link condition
+        return REJECT_LINK_CONDITION
     if boundary_lock or k == 2:
         bu = vboundary[u]
         bv = vboundary[v]
         if boundary_lock and (bu or bv):
-            return 6
+            return REJECT_BOUNDARY_LOCK
         if k == 2 and bu and bv:
-            return 2  # boundary pinch
+            return REJECT_BOUNDARY_PINCH
     # Duplicate faces: a face of u (not on the edge) must not coincide with one of v
     # once u is renamed v. Also the fold-over test for every face that moves.
     for side in range(2):
@@ -133,7 +144,7 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
                         if falive[g] and not (F[g, 0] == u or F[g, 1] == u or F[g, 2] == u):
                             if ((F[g, 0] == a or F[g, 1] == a or F[g, 2] == a)
                                     and (F[g, 0] == b or F[g, 1] == b or F[g, 2] == b)):
-                                return 3  # duplicate face
+                                return REJECT_DUPLICATE_FACE
                         c2 = cnext[c2]
                 # fold-over: the face with x moved to p
                 i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
@@ -151,12 +162,12 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
                 lb = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
                 la = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
                 if la <= 1e-12 * lb or la == 0.0:
-                    return 4
+                    return REJECT_FOLD_OVER
                 if lb > 0.0:
                     if (b0 * a0 + b1 * a1 + b2 * a2) / (la * lb) < cos_limit:
-                        return 4
+                        return REJECT_FOLD_OVER
             c = cnext[c]
-    return 0
+    return VALID
 
 
 @njit(cache=True)

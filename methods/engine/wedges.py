@@ -10,6 +10,7 @@ from numba import njit
 
 from methods.engine.lindstrom_turk import r5_texture_coordinates, texture_kappa
 from methods.engine.policy import LT_ALPHA_DEG
+from methods.engine.state import KIND_STRANDED, KIND_STRANDED_WEDGES, KIND_TWIN
 from methods.engine.topology import _edge_faces, _has_vertex
 
 
@@ -91,7 +92,10 @@ def _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, t
                 for i in range(nt):
                     if targets[i] == w:
                         seen = True
-                if not seen and nt < targets.shape[0]:
+                if not seen:
+                    if nt == targets.shape[0]:
+                        raise ValueError("more distinct wedges around a collapse than "
+                                         "WEDGE_TARGETS_CAP (methods.engine.state)")
                     targets[nt] = w
                     nt += 1
             c = cnext[c]
@@ -120,11 +124,11 @@ def _mapped(w, wmap_from, wmap_to, npairs):
 
 @njit(cache=True)
 def _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from, wmap_to,
-               npairs, t_edge, r5ws):
+               npairs, t_edge, r5):
     """Set the new UVs of :func:`_r5_compute`."""
-    targets, new_uv = r5ws[6], r5ws[7]
+    targets, new_uv = r5.targets, r5.new_uv
     nt = _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from,
-                     wmap_to, npairs, t_edge, r5ws)
+                     wmap_to, npairs, t_edge, r5)
     for ti in range(nt):
         uv[targets[ti], 0] = new_uv[ti, 0]
         uv[targets[ti], 1] = new_uv[ti, 1]
@@ -132,13 +136,15 @@ def _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fro
 
 @njit(cache=True)
 def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from, wmap_to,
-                npairs, t_edge, r5ws):
+                npairs, t_edge, r5):
     """New UVs of every wedge around the merged vertex by Lindstrom & Turk 2000's R^5
     oriented volumes (§4.1.1), each from the triangles of its own texture patch around
     the edge (the removed ones included); a wedge whose patch profile is degenerate
-    falls back to interpolation along the edge. Fills ``r5ws``'s targets and new UVs;
-    returns how many."""
-    tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, targets, new_uv = r5ws
+    falls back to interpolation along the edge. Fills the targets and new UVs of ``r5``
+    (methods.engine.state.R5Scratch); returns how many."""
+    tri_a, tri_b, tri_c = r5.tri_a, r5.tri_b, r5.tri_c
+    uv_a, uv_b, uv_c = r5.uv_a, r5.uv_b, r5.uv_c
+    targets, new_uv = r5.targets, r5.new_uv
     cap = tri_a.shape[0]
     nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)
     for ti in range(nt):
@@ -152,8 +158,11 @@ def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fr
                 f = c // 3
                 on_edge = (F[f, 0] == u or F[f, 1] == u or F[f, 2] == u) and \
                           (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v)
-                if falive[f] and not (side == 1 and on_edge) and n < cap and \
+                if falive[f] and not (side == 1 and on_edge) and \
                         _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs) == t:
+                    if n == cap:
+                        raise ValueError("a texture patch around a collapse has more "
+                                         "triangles than PROFILE_CAP (methods.engine.state)")
                     for d in range(3):
                         tri_a[n, d] = P[F[f, 0], d]
                         tri_b[n, d] = P[F[f, 1], d]
@@ -249,10 +258,11 @@ def _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex, wm
 @njit(cache=True)
 def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, kinds):
     """González et al. 2008, Algorithm 2, in welded terms, for collapsing u into v:
-    kinds[0] += 1 when the edge's faces pair two different wedge pairs (the real edge
-    and its *twin* at a seam or a sub-mesh joint collapse together); kinds[1] += 1 and
-    kinds[2] += (their number) when wedges of u have no partner at v (the paper's
-    disconnected vertices, which a *fake* edge or a translation brings to v)."""
+    kinds[KIND_TWIN] += 1 when the edge's faces pair two different wedge pairs (the real
+    edge and its *twin* at a seam or a sub-mesh joint collapse together);
+    kinds[KIND_STRANDED] += 1 and kinds[KIND_STRANDED_WEDGES] += (their number) when
+    wedges of u have no partner at v (the paper's disconnected vertices, which a *fake*
+    edge or a translation brings to v)."""
     distinct = 0
     for i in range(npairs):
         seen = False
@@ -262,7 +272,7 @@ def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, 
         if not seen:
             distinct += 1
     if distinct >= 2:
-        kinds[0] += 1
+        kinds[KIND_TWIN] += 1
     stranded = 0
     first = np.full(16, -1, np.int64)
     c = vhead[u]
@@ -281,8 +291,8 @@ def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, 
                     stranded += 1
         c = cnext[c]
     if stranded > 0:
-        kinds[1] += 1
-        kinds[2] += stranded
+        kinds[KIND_STRANDED] += 1
+        kinds[KIND_STRANDED_WEDGES] += stranded
 
 
 def _face_kappa(P, F, FW, uv) -> np.ndarray:

@@ -21,10 +21,11 @@ def view_entropy(s, a):
 
 @njit(cache=True)
 def entropy_init(IDS, ent):
-    """Set the per-view face pixel counts, their sum of a log a and total from ``IDS``."""
-    CNT, SUM, TOT, dcnt, emark, touched, flags, etick = ent
+    """Set the per-view face pixel counts, their sum of a log a and total from ``IDS``
+    (``ent``: methods.imaging.state.Entropy)."""
+    CNT, SUM, TOT = ent.counts, ent.sums, ent.totals
     n_views, height, width = IDS.shape
-    first = 0 if flags[1] != 0.0 else 1  # the background is entry 0
+    first = 0 if ent.background else 1  # the background is entry 0
     for h in range(n_views):
         for x in range(CNT.shape[1]):
             CNT[h, x] = 0
@@ -46,7 +47,9 @@ def _entropy_change(h, rect, ids, IDS, ent, commit):
     """Change of view ``h``'s entropy when the faces seen in ``rect`` become ``ids``
     (rectangle-relative) instead of ``IDS``: only the faces whose pixel count changes
     enter S = sum a log a and A. With ``commit`` the counts, S and A are updated."""
-    CNT, SUM, TOT, dcnt, emark, touched, flags, etick = ent
+    CNT, SUM, TOT, dcnt, emark, touched = (ent.counts, ent.sums, ent.totals, ent.dcnt,
+                                           ent.emark, ent.touched)
+    etick = ent.etick
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     etick[0] += 1
     tk = etick[0]
@@ -76,7 +79,7 @@ def _entropy_change(h, rect, ids, IDS, ent, commit):
         cur = CNT[h, x]
         if commit:
             CNT[h, x] = cur + d
-        if d == 0 or (x == 0 and flags[1] == 0.0):
+        if d == 0 or (x == 0 and not ent.background):
             continue
         s += _xlogx(float(cur + d)) - _xlogx(float(cur))
         a += d

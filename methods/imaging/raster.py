@@ -42,12 +42,20 @@ so the result does not depend on the number of threads).
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit, prange
 
 from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, LUMA_B, LUMA_G, LUMA_R, SHADINGS
 
 __all__ = ["BACKGROUND", "SHADINGS", "face_id_buffers", "rasterize_luminance"]
+
+#: The shading settings as the kernels see them: floats ``ambient``, ``diffuse``, ``ks``
+#: (specular coefficient), ``shininess``, ``albedo``, and booleans ``specular`` (add the
+#: highlight), ``gouraud`` (per-vertex lighting; else flat) and ``textured`` (albedo from
+#: the texture). Made by :func:`shading_constants`.
+Shading = namedtuple("Shading", "ambient diffuse ks shininess albedo specular gouraud textured")
 
 
 
@@ -191,14 +199,12 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
 
 
 @njit(cache=True)
-def shade_pixel(t, k, px, py, eye, consts, texture):
-    """Luminance (0..255) of table row ``k`` at pixel centre (px, py).
-
-    ``consts`` = (ambient, diffuse, ks, shininess, albedo, specular, gouraud, textured).
-    """
-    ambient, diffuse, ks, shininess, albedo = consts[0], consts[1], consts[2], consts[3], \
-        consts[4]
-    specular, gouraud, textured = consts[5] != 0.0, consts[6] != 0.0, consts[7] != 0.0
+def shade_pixel(t, k, px, py, eye, shading, texture):
+    """Luminance (0..255) of table row ``k`` at pixel centre (px, py) under ``shading``
+    (:data:`Shading`)."""
+    ambient, diffuse, ks, shininess, albedo = (shading.ambient, shading.diffuse, shading.ks,
+                                               shading.shininess, shading.albedo)
+    specular, gouraud, textured = shading.specular, shading.gouraud, shading.textured
     x0, y0, w0 = t[k, T_X], t[k, T_Y], t[k, T_W]
     x1, y1, w1 = t[k, T_X + 1], t[k, T_Y + 1], t[k, T_W + 1]
     x2, y2, w2 = t[k, T_X + 2], t[k, T_Y + 2], t[k, T_W + 2]
@@ -231,7 +237,7 @@ def shade_pixel(t, k, px, py, eye, consts, texture):
 
 
 @njit(cache=True)
-def shade_region(t, ids, c_lo, c_hi, r_lo, r_hi, eye, consts, texture, background, out):
+def shade_region(t, ids, c_lo, c_hi, r_lo, r_hi, eye, shading, texture, background, out):
     """Luminance of every pixel of the region from ``ids`` (row of ``t`` or -1) into
     ``out`` (indexed from (r_lo, c_lo), like ``ids``)."""
     for r in range(r_lo, r_hi + 1):
@@ -241,7 +247,7 @@ def shade_region(t, ids, c_lo, c_hi, r_lo, r_hi, eye, consts, texture, backgroun
             if k < 0:
                 out[r - r_lo, c - c_lo] = background
             else:
-                out[r - r_lo, c - c_lo] = shade_pixel(t, k, c + 0.5, py, eye, consts, texture)
+                out[r - r_lo, c - c_lo] = shade_pixel(t, k, c + 0.5, py, eye, shading, texture)
 
 
 @njit(cache=True)
@@ -303,7 +309,7 @@ def _fill_rows(t, s, positions, faces, face_normals, light, uv, gouraud, texture
 
 
 @njit(cache=True, parallel=True)
-def _render_kernel(screen, positions, faces, face_normals, light, uv, texture, eyes, consts,
+def _render_kernel(screen, positions, faces, face_normals, light, uv, texture, eyes, shading,
                    cull_front, width, height, background, shade):
     """Face index per pixel (-1 empty) and, with ``shade``, luminance, for every view.
 
@@ -312,7 +318,7 @@ def _render_kernel(screen, positions, faces, face_normals, light, uv, texture, e
     does not depend on the number of threads.
     """
     n_views, m = screen.shape[0], faces.shape[0]
-    gouraud, textured = consts[6] != 0.0, consts[7] != 0.0
+    gouraud, textured = shading.gouraud, shading.textured
     ids = np.full((n_views, height, width), -1, np.int32)
     lum = np.full((n_views if shade else 0, height, width), background)
     for v in prange(n_views):
@@ -323,7 +329,7 @@ def _render_kernel(screen, positions, faces, face_normals, light, uv, texture, e
         for k in range(m):
             scan_row(t, k, k, 0, width - 1, 0, height - 1, cull_front[v], depth, ids[v])
         if shade:
-            shade_region(t, ids[v], 0, width - 1, 0, height - 1, eyes[v], consts, texture,
+            shade_region(t, ids[v], 0, width - 1, 0, height - 1, eyes[v], shading, texture,
                          background, lum[v])
     return ids, lum
 
@@ -351,10 +357,11 @@ def _render(mesh, cameras, width, height, shading, specular, constants, cull_fro
     eyes = np.stack([np.asarray(c.eye, dtype=np.float64) for c in cameras])
     gouraud = shading == "gouraud"
     textured = bool(mesh.has_texture)
-    consts = shading_constants(constants, specular, gouraud, textured)
+    shading = shading_constants(constants, specular, gouraud, textured)
     if gouraud and shade:
         light = vertex_light(positions, np.asarray(mesh.vertex_normals, dtype=np.float64),
-                             eyes, consts[0], consts[1], consts[2], consts[3], specular)
+                             eyes, shading.ambient, shading.diffuse, shading.ks,
+                             shading.shininess, specular)
     else:
         light = np.zeros((1, 1, 4))
     face_n = (np.ascontiguousarray(mesh.face_normals, dtype=np.float64)
@@ -364,16 +371,17 @@ def _render(mesh, cameras, width, height, shading, specular, constants, cull_fro
         texture = np.ascontiguousarray(mesh.texture[:, :, :3])
     else:
         uv, texture = np.zeros((1, 2)), np.zeros((1, 1, 3), np.uint8)
-        consts[7] = 0.0
-    return _render_kernel(screen, positions, faces, face_n, light, uv, texture, eyes, consts,
+        shading = shading._replace(textured=False)
+    return _render_kernel(screen, positions, faces, face_n, light, uv, texture, eyes, shading,
                           cull, width, height, float(BACKGROUND), shade)
 
 
-def shading_constants(constants, specular: bool, gouraud: bool, textured: bool) -> np.ndarray:
-    """The ``consts`` vector of :func:`shade_pixel`."""
-    return np.array([constants.ambient, constants.diffuse, constants.specular,
-                     constants.shininess, constants.albedo, float(bool(specular)),
-                     float(bool(gouraud)), float(bool(textured))], np.float64)
+def shading_constants(constants, specular: bool, gouraud: bool, textured: bool) -> Shading:
+    """The :data:`Shading` of :func:`shade_pixel` (every coefficient a float64)."""
+    return Shading(float(np.float64(constants.ambient)), float(np.float64(constants.diffuse)),
+                   float(np.float64(constants.specular)),
+                   float(np.float64(constants.shininess)), float(np.float64(constants.albedo)),
+                   bool(specular), bool(gouraud), bool(textured))
 
 
 def face_id_buffers(mesh, cameras, width: int = 256, height: int = 256,

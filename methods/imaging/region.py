@@ -7,7 +7,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from methods.imaging.counters import cycles
+from methods.imaging.counters import (
+    STAT_COMMITS,
+    STAT_FACE_ROWS,
+    STAT_GATHER_CYCLES,
+    STAT_IMAGE_EVALUATIONS,
+    STAT_PIXELS_SHADED,
+    STAT_RASTER_CYCLES,
+    STAT_SETUP_CYCLES,
+    STAT_SHADE_CYCLES,
+    cycles,
+)
 from methods.imaging.entropy import _entropy_change
 from methods.imaging.raster import scan_row, shade_pixel
 from methods.imaging.rows import (
@@ -21,7 +31,15 @@ from methods.imaging.rows import (
 )
 from methods.imaging.tiles import TILE, _gather, _tiles_add
 
-_MAX_RING = 256  # vertices whose normal a collapse changes (more: 2-ring of a huge fan)
+#: Vertices whose normal one collapse changes (the 1-ring of the edge's faces); more
+#: raises (a fan of hundreds of triangles).
+_MAX_RING = 256
+MAX_RING = _MAX_RING
+#: Faces whose geometry or shading one collapse changes (around the edge and the ring).
+AFFECTED_CAP = 8192
+#: Wedges whose texture coordinates one collapse changes (the engine's
+#: WEDGE_TARGETS_CAP).
+NEW_UV_CAP = 64
 
 
 @njit(cache=True)
@@ -41,11 +59,27 @@ def _has(F, f, x):
 
 
 @njit(cache=True)
+def _add_to_ring(x, ring, vslot, nr):
+    """Append vertex ``x`` to the ring of vertices whose normal changes (slot ``nr``)."""
+    if nr == ring.shape[0]:
+        raise ValueError("a collapse changes the normals of more vertices than MAX_RING "
+                         "(methods.imaging.region)")
+    vslot[x] = nr
+    ring[nr] = x
+    return nr + 1
+
+
+@njit(cache=True)
 def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
+    """Append to ``out[n:]`` the live faces of vertex ``y`` not marked ``tk`` (marking
+    them); returns the new count."""
     c = vhead[y]
     while c != -1:
         f = c // 3
-        if falive[f] and mark[f] != tk and n < out.shape[0]:
+        if falive[f] and mark[f] != tk:
+            if n == out.shape[0]:
+                raise ValueError("a collapse affects more faces than AFFECTED_CAP "
+                                 "(methods.imaging.region)")
             mark[f] = tk
             out[n] = f
             n += 1
@@ -59,7 +93,7 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     """Re-render ``rect`` of view ``h`` as the mesh looks after collapsing ``u`` into
     ``v`` at ``p`` (``u = -1``: as it is now, after a collapse already made).
 
-    ``aff[:na]`` are the faces whose geometry changes (with ``u >= 0`` those holding
+    ``iws.aff[:na]`` are the faces whose geometry changes (with ``u >= 0`` those holding
     both ``u`` and ``v`` disappear); they and any removed faces carry
     ``gmark == atick``, and every face whose shading may change carries
     ``amark == atick``. A pixel keeps its current face unless that face is one of the
@@ -69,12 +103,44 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     from-scratch render's. With ``commit`` the pixels go into ``Y``, ``IDS`` and
     ``DZ``; otherwise returns the change of the squared error (equation 8).
     """
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
-    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
-     sp_, box, aff, amark, gmark, rowof, rowmark) = iws
-    n_views, height, width = Y.shape
-    c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
+    stats, ent = img.stats, img.ent
     start = cycles()
+    # Holes: the pixels whose face changes; the others keep their face and depth.
+    hc0, hc1, hr0, hr1 = _open_holes(h, rect, img, iws, atick)
+    # The changed faces, over the whole rectangle.
+    n = _scan_changed(h, rect, na, u, v, sp, F, img, iws)
+    if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
+        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, sp, F, falive, img, tiles, iws)
+    mid = cycles()
+    if ent.on:  # viewpoint entropy: the count changes inside the rectangle
+        dh = _entropy_change(h, rect, iws.ids, img.IDS, ent, commit)
+        if not commit:
+            ent.delta[0] += abs(dh)
+    if not ent.shade:  # face ids only, no luminance (entropy without equation 8)
+        if commit:
+            _commit_ids(h, rect, img, iws)
+        stats[STAT_FACE_ROWS] += n
+        stats[STAT_RASTER_CYCLES] += cycles() - start
+        return 0.0
+    # Shade the pixels whose face or shading changed.
+    cost, shaded, n = _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom,
+                                     wto, npairs, atick, commit, background)
+    end = cycles()
+    stats[STAT_PIXELS_SHADED] += shaded
+    stats[STAT_FACE_ROWS] += n
+    stats[STAT_RASTER_CYCLES] += end - start
+    stats[STAT_SHADE_CYCLES] += end - mid
+    return cost
+
+
+@njit(cache=True)
+def _open_holes(h, rect, img, iws, atick):
+    """Start ``iws.depth``/``iws.ids`` (rectangle-relative) from view ``h``'s current
+    depth and faces, with the pixels of changed faces (``gmark == atick``) emptied;
+    returns the holes' bounding box (c0, c1, r0, r1), empty when c0 > c1."""
+    IDS, DZ, gmark, depth, ids = img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids
+    height, width = img.Y.shape[1], img.Y.shape[2]
+    c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     hc0, hc1, hr0, hr1 = width, -1, height, -1
     for r in range(r0, r1 + 1):
         for c in range(c0, c1 + 1):
@@ -87,6 +153,15 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
             else:
                 depth[r - r0, c - c0] = DZ[h, r, c]
                 ids[r - r0, c - c0] = w
+    return hc0, hc1, hr0, hr1
+
+
+@njit(cache=True)
+def _scan_changed(h, rect, na, u, v, sp, F, img, iws):
+    """Scan the changed faces ``iws.aff[:na]`` (after the collapse, those of the edge
+    gone) over ``rect``; they become table rows 0..n-1. Returns n."""
+    cand, rowof, t, aff = iws.cand, iws.rowof, iws.t, iws.aff
+    c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     n = 0
     for i in range(na):
         f = aff[i]
@@ -94,42 +169,62 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
             continue  # removed by the collapse
         cand[n] = f
         rowof[f] = n
-        fill_screen(t, n, f, h, u, v, sp, S, F)
-        scan_row(t, n, f, c0, c1, r0, r1, cull[h], depth, ids)
+        fill_screen(t, n, f, h, u, v, sp, img.S, F)
+        scan_row(t, n, f, c0, c1, r0, r1, img.cull[h], iws.depth, iws.ids)
         n += 1
-    if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
-        tick[0] += 1
-        for i in range(na):
-            mark[aff[i]] = tick[0]
-        hole = box
-        hole[0], hole[1], hole[2], hole[3] = hc0, hc1, hr0, hr1
-        g0 = cycles()
-        n2 = _gather(tiles, h, hole, fbox, falive, mark, tick[0], cand, n, TILE,
-                     -(-width // TILE))
-        stats[7] += cycles() - g0
-        hole_depth = depth[hr0 - r0:, hc0 - c0:]  # views indexed from the holes' corner
-        hole_ids = ids[hr0 - r0:, hc0 - c0:]
-        for k in range(n, n2):
-            f = cand[k]
-            rowof[f] = k
-            fill_screen(t, k, f, h, -1, -1, sp, S, F)
-            scan_row(t, k, f, hc0, hc1, hr0, hr1, cull[h], hole_depth, hole_ids)
-        n = n2
-    mid = cycles()
-    eflags = ent[6]
-    if eflags[0] != 0.0:  # viewpoint entropy: the count changes inside the rectangle
-        dh = _entropy_change(h, rect, ids, IDS, ent, commit)
-        if not commit:
-            eflags[3] += abs(dh)
-    if eflags[2] == 0.0:  # face ids only, no luminance (entropy without equation 8)
-        if commit:
-            for r in range(r0, r1 + 1):
-                for c in range(c0, c1 + 1):
-                    IDS[h, r, c] = ids[r - r0, c - c0]
-                    DZ[h, r, c] = depth[r - r0, c - c0]
-        stats[2] += n
-        stats[3] += cycles() - start
-        return 0.0
+    return n
+
+
+@njit(cache=True)
+def _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, sp, F, falive, img, tiles, iws):
+    """Scan every other face whose box meets the holes' box (from the tile index) over
+    that box, as table rows n..; returns the new row count."""
+    mark, tick, cand, rowof, t, aff = iws.mark, iws.tick, iws.cand, iws.rowof, iws.t, iws.aff
+    width = img.Y.shape[2]
+    r0, c0 = rect[2], rect[0]
+    tick[0] += 1
+    for i in range(na):
+        mark[aff[i]] = tick[0]
+    hole = iws.box
+    hole[0], hole[1], hole[2], hole[3] = hc0, hc1, hr0, hr1
+    g0 = cycles()
+    n2 = _gather(tiles, h, hole, img.fbox, falive, mark, tick[0], cand, n, TILE,
+                 -(-width // TILE))
+    img.stats[STAT_GATHER_CYCLES] += cycles() - g0
+    hole_depth = iws.depth[hr0 - r0:, hc0 - c0:]  # views indexed from the holes' corner
+    hole_ids = iws.ids[hr0 - r0:, hc0 - c0:]
+    for k in range(n, n2):
+        f = cand[k]
+        rowof[f] = k
+        fill_screen(t, k, f, h, -1, -1, sp, img.S, F)
+        scan_row(t, k, f, hc0, hc1, hr0, hr1, img.cull[h], hole_depth, hole_ids)
+    return n2
+
+
+@njit(cache=True)
+def _commit_ids(h, rect, img, iws):
+    """Write the rectangle's faces and depths into view ``h``'s ``IDS`` and ``DZ``."""
+    c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
+    for r in range(r0, r1 + 1):
+        for c in range(c0, c1 + 1):
+            img.IDS[h, r, c] = iws.ids[r - r0, c - c0]
+            img.DZ[h, r, c] = iws.depth[r - r0, c - c0]
+
+
+@njit(cache=True)
+def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, npairs,
+                   atick, commit, background):
+    """Shade the rectangle's pixels whose face changed, or whose face's shading may have
+    (``amark == atick``): into ``Y``, ``IDS``, ``DZ`` with ``commit``, else summing the
+    change of the squared error. A kept face seen there gets a table row on first use.
+    Returns (cost, pixels shaded, row count)."""
+    Y0, Y, S, L, shading, texture, IDS, DZ, eyes = (img.Y0, img.Y, img.S, img.L,
+                                                     img.shading, img.texture, img.IDS,
+                                                     img.DZ, img.eyes)
+    tick, cand, t, depth, ids, amark, rowof, rowmark = (iws.tick, iws.cand, iws.t, iws.depth,
+                                                        iws.ids, iws.amark, iws.rowof,
+                                                        iws.rowmark)
+    c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     tick[0] += 1
     filled = tick[0]  # rows whose shading columns are filled are marked with it
     cost = 0.0
@@ -149,10 +244,11 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
                     fill_screen(t, k, f, h, u, v, sp, S, F)
                     n += 1
                 if rowmark[k] != filled:
-                    fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, vslot, ov_light,
-                                 wslot, new_uv, wfrom, wto, npairs, consts)
+                    fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, iws.vslot,
+                                 iws.ov_light, iws.wslot, iws.new_uv, wfrom, wto, npairs,
+                                 shading)
                     rowmark[k] = filled
-                y = shade_pixel(t, k, c + 0.5, r + 0.5, eyes[h], consts, texture)
+                y = shade_pixel(t, k, c + 0.5, r + 0.5, eyes[h], shading, texture)
             shaded += 1
             if commit:
                 Y[h, r, c] = y
@@ -162,12 +258,7 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
                 a = Y0[h, r, c] - y
                 b = Y0[h, r, c] - Y[h, r, c]
                 cost += a * a - b * b
-    end = cycles()
-    stats[1] += shaded
-    stats[2] += n
-    stats[3] += end - start
-    stats[8] += end - mid
-    return cost
+    return cost, shaded, n
 
 
 @njit(cache=True)
@@ -176,14 +267,20 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
     squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
     whose texture coordinates become ``target_uv[:nt]``."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
-    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
-     sp, box, aff, amark, gmark, rowof, rowmark) = iws
-    n_views, height, width = Y.shape
-    gouraud = consts[6] != 0.0
-    stats[0] += 1
-    ent[6][3] = 0.0  # sum of |dH_v| of this evaluation, read by the engine
+    M, eyes, S, fbox, shading, stats = img.M, img.eyes, img.S, img.fbox, img.shading, img.stats
+    mark, tick, t, vslot, ov_light, wslot, new_uv = (iws.mark, iws.tick, iws.t, iws.vslot,
+                                                     iws.ov_light, iws.wslot, iws.new_uv)
+    ring, rects, buf, n3, sp, box, aff = (iws.ring, iws.rects, iws.buf, iws.n3, iws.sp,
+                                          iws.box, iws.aff)
+    amark, gmark = iws.amark, iws.gmark
+    n_views, height, width = img.Y.shape
+    gouraud = shading.gouraud
+    stats[STAT_IMAGE_EVALUATIONS] += 1
+    img.ent.delta[0] = 0.0  # sum of |dH_v| of this evaluation, read by the engine
     setup_start = cycles()
+    if nt > new_uv.shape[0]:
+        raise ValueError("more new texture coordinates than NEW_UV_CAP "
+                         "(methods.imaging.region)")
     for i in range(nt):
         wslot[targets[i]] = i
         new_uv[i, 0], new_uv[i, 1] = target_uv[i, 0], target_uv[i, 1]
@@ -200,16 +297,14 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
         for i in range(na):
             for j in range(3):
                 x = F[aff[i], j]
-                if x != u and vslot[x] < 0 and nr < ring.shape[0]:
-                    vslot[x] = nr
-                    ring[nr] = x
-                    nr += 1
+                if x != u and vslot[x] < 0:
+                    nr = _add_to_ring(x, ring, vslot, nr)
         for i in range(nr):
             x = ring[i]
             vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, n3)
             for h in range(n_views):
                 _light(_pos(x, u, v, p, P, 0), _pos(x, u, v, p, P, 1), _pos(x, u, v, p, P, 2),
-                       n3, eyes[h], consts, ov_light[h, i], 0)
+                       n3, eyes[h], shading, ov_light[h, i], 0)
             ns = _faces_around(x, vhead, cnext, falive, mark, tick[0], aff, ns)
     atick = tick[0]
     for i in range(ns):
@@ -217,7 +312,7 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     for i in range(na):
         gmark[aff[i]] = atick
     cost = 0.0
-    stats[9] += cycles() - setup_start
+    stats[STAT_SETUP_CYCLES] += cycles() - setup_start
     for h in range(n_views):
         project(M, h, p, width, height, sp)
         rect = rects[h]
@@ -249,12 +344,14 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
     the changed faces in the tile index. Returns (whether no tile overflowed, how many
     faces around ``v`` changed); after an overflow rebuild the index before
     :func:`commit_render`."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
-    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
-     sp, box, aff, amark, gmark, rowof, rowmark) = iws
-    n_views, height, width = Y.shape
-    gouraud = consts[6] != 0.0
-    stats[6] += 1
+    M, eyes, S, fbox, vn, L, shading = (img.M, img.eyes, img.S, img.fbox, img.vn, img.L,
+                                        img.shading)
+    mark, tick, t, vslot, ring, rects, buf = (iws.mark, iws.tick, iws.t, iws.vslot, iws.ring,
+                                              iws.rects, iws.buf)
+    sp, aff, amark, gmark = iws.sp, iws.aff, iws.amark, iws.gmark
+    n_views, height, width = img.Y.shape
+    gouraud = shading.gouraud
+    img.stats[STAT_COMMITS] += 1
     tick[0] += 1
     na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, 0)
     for h in range(n_views):
@@ -269,16 +366,14 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
             f = aff[i] if i < na else removed[i - na]
             for j in range(3):
                 x = F[f, j]
-                if valive[x] and vslot[x] < 0 and nr < ring.shape[0]:
-                    vslot[x] = nr
-                    ring[nr] = x
-                    nr += 1
+                if valive[x] and vslot[x] < 0:
+                    nr = _add_to_ring(x, ring, vslot, nr)
         for i in range(nr):
             x = ring[i]
             vslot[x] = -1
             vertex_normal(x, -1, -1, P[x], P, F, vhead, cnext, falive, buf, vn[x])
             for h in range(n_views):
-                _light(P[x, 0], P[x, 1], P[x, 2], vn[x], eyes[h], consts, L[h, x], 0)
+                _light(P[x, 0], P[x, 1], P[x, 2], vn[x], eyes[h], shading, L[h, x], 0)
             ns = _faces_around(x, vhead, cnext, falive, mark, tick[0], aff, ns)
     for i in range(ns):
         amark[aff[i]] = tick[0]
@@ -304,12 +399,10 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
 def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
     """Re-render every view's rectangle noted by :func:`commit_geometry` into the
     images (``na``: its count of changed faces)."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
-    (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv, ring, rects, buf, n3,
-     sp, box, aff, amark, gmark, rowof, rowmark) = iws
-    atick = tick[0]  # commit_geometry marked the changed faces with it
+    rects, sp = iws.rects, iws.sp
+    atick = iws.tick[0]  # commit_geometry marked the changed faces with it
     none_i = np.full(1, -1, np.int64)
-    for h in range(Y.shape[0]):
+    for h in range(img.Y.shape[0]):
         rect = rects[h]
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue

@@ -9,6 +9,9 @@ from numba import njit
 
 from methods.imaging.raster import T_L, T_N, T_P, T_UV, T_W, T_X, T_Y, T_Z
 
+#: Faces around one vertex summed into its normal (:func:`vertex_normal` raises beyond).
+NORMAL_FACES_CAP = 1024
+
 
 @njit(cache=True)
 def project(M, h, p, width, height, out):
@@ -43,7 +46,7 @@ def row_box(t, k, width, height, out):
 
 
 @njit(cache=True)
-def _light(px, py, pz, n, eye, consts, out, o):
+def _light(px, py, pz, n, eye, shading, out, o):
     """Headlight terms of a vertex for both sides, as :func:`methods.imaging.raster.vertex_light`:
     out[o:o+4] = (lit front, spec front, lit back, spec back)."""
     tx, ty, tz = eye[0] - px, eye[1] - py, eye[2] - pz
@@ -51,8 +54,8 @@ def _light(px, py, pz, n, eye, consts, out, o):
     dot = (tx * n[0] + ty * n[1] + tz * n[2]) / length
     for side in range(2):
         c = max(dot if side == 0 else -dot, 0.0)
-        out[o + 2 * side] = consts[0] + consts[1] * c
-        out[o + 2 * side + 1] = consts[2] * c ** consts[3] if consts[5] != 0.0 else 0.0
+        out[o + 2 * side] = shading.ambient + shading.diffuse * c
+        out[o + 2 * side + 1] = shading.ks * c ** shading.shininess if shading.specular else 0.0
 
 
 @njit(cache=True)
@@ -86,7 +89,10 @@ def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
             if falive[f]:
                 edge = u >= 0 and ((F[f, 0] == u or F[f, 1] == u or F[f, 2] == u) and
                                    (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v))
-                if not edge and n < buf.shape[0]:
+                if not edge:
+                    if n == buf.shape[0]:
+                        raise ValueError("a vertex has more faces than NORMAL_FACES_CAP "
+                                         "(methods.imaging.rows)")
                     buf[n] = f
                     n += 1
             c = cnext[c]
@@ -126,11 +132,11 @@ def fill_screen(t, k, f, h, u, v, sp, S, F):
 
 @njit(cache=True)
 def fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, vslot, ov_light, wslot, new_uv,
-                 wfrom, wto, npairs, consts):
+                 wfrom, wto, npairs, shading):
     """Shading columns of row ``k`` (as :func:`fill_screen`): corner positions and the
     face normal (flat), corner lighting (gouraud; the new lighting of the vertices in
     ``vslot``), texture coordinates (the new ones of the wedges in ``wslot``)."""
-    gouraud, textured = consts[6] != 0.0, consts[7] != 0.0
+    gouraud, textured = shading.gouraud, shading.textured
     for j in range(3):
         x = F[f, j]
         moved = u >= 0 and (x == u or x == v)

@@ -3,6 +3,7 @@ from Python (:class:`ImageTerm`)."""
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,50 +11,93 @@ from numba import njit, prange
 
 from methods.imaging.counters import STAT_NAMES
 from methods.imaging.entropy import entropy_init, view_entropy
-from methods.imaging.raster import ROW, scan_row, shade_region, shading_constants
-from methods.imaging.region import _MAX_RING
-from methods.imaging.rows import _light, fill_screen, fill_shading, project, row_box, vertex_normal
-from methods.imaging.tiles import TILE, build_tiles
+from methods.imaging.raster import ROW, Shading, scan_row, shade_region, shading_constants
+from methods.imaging.region import _MAX_RING, AFFECTED_CAP, NEW_UV_CAP
+from methods.imaging.rows import (
+    NORMAL_FACES_CAP,
+    _light,
+    fill_screen,
+    fill_shading,
+    project,
+    row_box,
+    vertex_normal,
+)
+from methods.imaging.tiles import TILE, Tiles, build_tiles
 from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, SHADINGS
+
+#: The image state of the engine's rendered cost terms (arrays over V views of H x W
+#: pixels, nv welded vertices, m faces): clip transforms ``M`` (V, 4, 4), ``eyes`` (V, 3),
+#: ``cull`` (V,) bool, the original's luminance ``Y0`` and the maintained one ``Y``
+#: (V, H, W), screen positions ``S`` (V, nv, 4), face pixel boxes ``fbox`` (V, m, 4)
+#: int32, vertex normals ``vn`` (nv, 3), vertex lighting ``L`` (V, nv, 4), ``shading``
+#: (:data:`methods.imaging.raster.Shading`), ``texture`` (h, w, 3) uint8, ``stats``
+#: counters (indexed by methods.imaging.counters.STAT_*), the face seen at each pixel
+#: ``IDS`` (V, H, W) int64 (-1 empty), its depth ``DZ`` (V, H, W), ``ent``
+#: (:data:`Entropy`).
+ImageState = namedtuple("ImageState", "M eyes cull Y0 Y S fbox vn L shading texture stats "
+                                      "IDS DZ ent")
+
+#: The viewpoint entropy's counts: face pixel ``counts`` (V, m + 1) (entry 0 the
+#: background), per view ``sums`` of a log a (V,) and ``totals`` (V,), scratch
+#: ``dcnt``/``emark``/``touched`` (m + 1,) and ``etick`` (1,); booleans ``on`` (the
+#: entropy term is kept), ``background`` (counted as a face), ``shade`` (luminance is
+#: shaded too); ``delta`` (1,) the sum of |dH| of the last evaluation, read by the engine.
+Entropy = namedtuple("Entropy", "counts sums totals dcnt emark touched on background shade "
+                                "delta etick")
+
+#: Scratch of the region re-renders: face marks ``mark`` (m,) with ``tick`` (1,), the
+#: candidate faces ``cand`` (m,) and their table rows ``t`` (m, ROW), a rectangle's
+#: ``depth`` and ``ids`` (H, W), ``vslot`` (nv,) slot of a vertex whose lighting changes
+#: and its new lighting ``ov_light`` (V, MAX_RING, 4), ``wslot`` (n_wedges,) slot of a
+#: wedge whose UV changes and its ``new_uv`` (NEW_UV_CAP, 2), the ``ring`` of vertices
+#: whose normal changes (MAX_RING,), per-view ``rects`` (V, 4), ``buf`` (NORMAL_FACES_CAP,)
+#: faces of a vertex normal, ``n3`` (3,), ``sp`` (4,) a screen position, ``box`` (4,),
+#: the affected faces ``aff`` (AFFECTED_CAP,), marks ``amark``/``gmark``/``rowmark`` and
+#: ``rowof`` (m,).
+ImageScratch = namedtuple("ImageScratch", "mark tick cand t depth ids vslot ov_light wslot "
+                                          "new_uv ring rects buf n3 sp box aff amark gmark "
+                                          "rowof rowmark")
 
 
 def _workspace(n_views, nv, m, n_wedges, height, width):
-    """Scratch arrays: (mark, tick, cand, t, depth, ids, vslot, ov_light, wslot, new_uv,
-    ring, rects, buf, n3, sp, box, aff, amark, gmark, rowof, rowmark)."""
+    """An :data:`ImageScratch` for the given sizes."""
     m = max(m, 1)
-    return (np.zeros(m, np.int64), np.zeros(1, np.int64), np.empty(m, np.int64),
-            np.empty((m, ROW)), np.empty((height, width)), np.empty((height, width), np.int64),
-            np.full(nv, -1, np.int64), np.zeros((n_views, _MAX_RING, 4)),
-            np.full(n_wedges, -1, np.int64), np.zeros((64, 2)), np.empty(_MAX_RING, np.int64),
-            np.empty((n_views, 4), np.int64), np.empty(1024, np.int64), np.empty(3),
-            np.empty(4), np.empty(4, np.int64), np.empty(8192, np.int64),
-            np.zeros(m, np.int64), np.zeros(m, np.int64), np.zeros(m, np.int64),
-            np.zeros(m, np.int64))
+    return ImageScratch(
+        np.zeros(m, np.int64), np.zeros(1, np.int64), np.empty(m, np.int64),
+        np.empty((m, ROW)), np.empty((height, width)), np.empty((height, width), np.int64),
+        np.full(nv, -1, np.int64), np.zeros((n_views, _MAX_RING, 4)),
+        np.full(n_wedges, -1, np.int64), np.zeros((NEW_UV_CAP, 2)),
+        np.empty(_MAX_RING, np.int64), np.empty((n_views, 4), np.int64),
+        np.empty(NORMAL_FACES_CAP, np.int64), np.empty(3), np.empty(4), np.empty(4, np.int64),
+        np.empty(AFFECTED_CAP, np.int64), np.zeros(m, np.int64), np.zeros(m, np.int64),
+        np.zeros(m, np.int64), np.zeros(m, np.int64))
 
 
 def entropy_state(n_views, m, on=False, background=True, shade=True):
-    """The ``ent`` member of an image state: per-view face pixel counts and scratch
-    (see :func:`entropy_init`); (1, 1) placeholders when the entropy term is off."""
+    """The ``ent`` member of an image state (:data:`Entropy`): per-view face pixel
+    counts and scratch (see :func:`entropy_init`); (1, 1) placeholders when the entropy
+    term is off."""
     size = m + 1 if on else 1
-    flags = np.array([float(on), float(background), float(shade), 0.0])
-    return (np.zeros((n_views if on else 1, size), np.int64), np.zeros(max(n_views, 1)),
-            np.zeros(max(n_views, 1), np.int64), np.zeros(size, np.int64),
-            np.zeros(size, np.int64), np.zeros(size, np.int64), flags, np.zeros(1, np.int64))
+    return Entropy(np.zeros((n_views if on else 1, size), np.int64), np.zeros(max(n_views, 1)),
+                   np.zeros(max(n_views, 1), np.int64), np.zeros(size, np.int64),
+                   np.zeros(size, np.int64), np.zeros(size, np.int64), bool(on),
+                   bool(background), bool(shade), np.zeros(1), np.zeros(1, np.int64))
 
 
 def dummy_state():
     """An image state of the right types for engine runs without the image term."""
-    img = (np.zeros((1, 4, 4)), np.zeros((1, 3)), np.zeros(1, np.bool_), np.zeros((1, 1, 1)),
-           np.zeros((1, 1, 1)), np.zeros((1, 1, 4)), np.zeros((1, 1, 4), np.int32),
-           np.zeros((1, 3)), np.zeros((1, 1, 4)), np.zeros(8), np.zeros((1, 1, 3), np.uint8),
-           np.zeros(len(STAT_NAMES), np.int64), np.zeros((1, 1, 1), np.int64),
-           np.zeros((1, 1, 1)), entropy_state(1, 1))
-    tiles = (np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64), np.zeros(1, np.int32),
-             np.zeros((1, 1, 4), np.int32))
+    img = ImageState(np.zeros((1, 4, 4)), np.zeros((1, 3)), np.zeros(1, np.bool_),
+                     np.zeros((1, 1, 1)), np.zeros((1, 1, 1)), np.zeros((1, 1, 4)),
+                     np.zeros((1, 1, 4), np.int32), np.zeros((1, 3)), np.zeros((1, 1, 4)),
+                     Shading(0.0, 0.0, 0.0, 0.0, 0.0, False, False, False),
+                     np.zeros((1, 1, 3), np.uint8), np.zeros(len(STAT_NAMES), np.int64),
+                     np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1)), entropy_state(1, 1))
+    tiles = Tiles(np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64),
+                  np.zeros(1, np.int32), np.zeros((1, 1, 4), np.int32))
     return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
 
 
-def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges, entropy=None):
+def new_state(M, eyes, cull, Y0, shading, texture, nv, m, n_wedges, entropy=None):
     """Arrays of an image state; :func:`full_render` fills them.
 
     Parameters
@@ -66,7 +110,7 @@ def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges, entropy=None)
         Views drawn with front faces culled (interior views, §5.2).
     Y0 : ndarray (V, H, W)
         Luminance of the original model.
-    consts : ndarray (8,)
+    shading : methods.imaging.raster.Shading
         :func:`methods.imaging.raster.shading_constants`.
     texture : ndarray (h, w, 3) uint8
     nv, m, n_wedges : int
@@ -76,28 +120,40 @@ def new_state(M, eyes, cull, Y0, consts, texture, nv, m, n_wedges, entropy=None)
         counts (:func:`entropy_init` fills them after :func:`full_render`).
     """
     n_views, height, width = Y0.shape
-    img = (np.ascontiguousarray(M, np.float64), np.ascontiguousarray(eyes, np.float64),
-           np.ascontiguousarray(cull, np.bool_), np.ascontiguousarray(Y0, np.float64),
-           np.full(Y0.shape, 128.0), np.zeros((n_views, nv, 4)),
-           np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)), np.zeros((n_views, nv, 4)),
-           np.ascontiguousarray(consts, np.float64), np.ascontiguousarray(texture, np.uint8),
-           np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64),
-           np.full(Y0.shape, np.inf),
-           entropy_state(n_views, m) if entropy is None else
-           entropy_state(n_views, m, True, entropy[0], entropy[1]))
+    img = ImageState(
+        np.ascontiguousarray(M, np.float64), np.ascontiguousarray(eyes, np.float64),
+        np.ascontiguousarray(cull, np.bool_), np.ascontiguousarray(Y0, np.float64),
+        np.full(Y0.shape, 128.0), np.zeros((n_views, nv, 4)),
+        np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)), np.zeros((n_views, nv, 4)),
+        shading, np.ascontiguousarray(texture, np.uint8),
+        np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64),
+        np.full(Y0.shape, np.inf),
+        entropy_state(n_views, m) if entropy is None else
+        entropy_state(n_views, m, True, entropy[0], entropy[1]))
     return img, _workspace(n_views, nv, m, n_wedges, height, width)
 
 
-@njit(cache=True, parallel=True)
 def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background):
-    """Set every per-vertex and per-face quantity from the mesh and render all views
-    from scratch into ``Y``, ``IDS`` (the face seen at each pixel, -1 empty) and ``DZ``
-    (its depth)."""
-    M, eyes, cull, Y0, Y, S, fbox, vn, L, consts, texture, stats, IDS, DZ, ent = img
-    vslot, ov_light, wslot, new_uv = iws[6], iws[7], iws[8], iws[9]
+    """Set every per-vertex and per-face quantity of the image state ``img`` from the
+    mesh and render all views from scratch into ``Y``, ``IDS`` (the face seen at each
+    pixel, -1 empty) and ``DZ`` (its depth)."""
+    # The parallel kernel takes the fields one by one: numba's parfor lowering cannot
+    # trace a namedtuple taken from another one's field into a prange body.
+    _full_render(img.M, img.eyes, img.cull, img.Y, img.S, img.fbox, img.vn, img.L,
+                 img.shading, img.texture, img.IDS, img.DZ, iws.vslot, iws.ov_light,
+                 iws.wslot, iws.new_uv, P, F, FW, uv, falive, vhead, cnext, valive,
+                 background)
+
+
+@njit(cache=True, parallel=True)
+def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vslot,
+                 ov_light, wslot, new_uv, P, F, FW, uv, falive, vhead, cnext, valive,
+                 background):
+    """:func:`full_render` on the image state's fields (:data:`ImageState`,
+    :data:`ImageScratch`)."""
     n_views, height, width = Y.shape
     nv, m = P.shape[0], F.shape[0]
-    gouraud = consts[6] != 0.0
+    gouraud = shading.gouraud
     for i in prange(nv):
         if not valive[i]:
             continue
@@ -107,10 +163,10 @@ def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background
         for i in prange(nv):
             if not valive[i]:
                 continue
-            buf = np.empty(1024, np.int64)
+            buf = np.empty(NORMAL_FACES_CAP, np.int64)
             vertex_normal(i, -1, -1, P[i], P, F, vhead, cnext, falive, buf, vn[i])
             for h in range(n_views):
-                _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], consts, L[h, i], 0)
+                _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], shading, L[h, i], 0)
     live = np.flatnonzero(falive)
     for h in prange(n_views):
         t = np.empty((max(live.shape[0], 1), ROW))
@@ -120,10 +176,10 @@ def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background
         for k in range(live.shape[0]):
             fill_screen(t, k, live[k], h, -1, -1, S[h, 0], S, F)
             fill_shading(t, k, live[k], h, -1, -1, P[0], P, F, FW, uv, L, vslot, ov_light,
-                         wslot, new_uv, none_i, none_i, 0, consts)
+                         wslot, new_uv, none_i, none_i, 0, shading)
             row_box(t, k, width, height, fbox[h, live[k]])
             scan_row(t, k, k, 0, width - 1, 0, height - 1, cull[h], depth, local)
-        shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], consts, texture,
+        shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], shading, texture,
                      background, Y[h])
         for r in range(height):
             for c in range(width):
@@ -192,8 +248,8 @@ class ImageTerm:
         if constants is None:
             constants = DEFAULT_CONSTANTS
         textured = bool(mesh.has_texture)
-        consts = shading_constants(constants, self.specular, self.shading == "gouraud",
-                                   textured)
+        shading = shading_constants(constants, self.specular, self.shading == "gouraud",
+                                    textured)
         texture = (np.ascontiguousarray(mesh.texture[:, :, :3]) if textured
                    else np.zeros((1, 1, 3), np.uint8))
         cull = np.zeros(n_views, np.bool_)
@@ -203,7 +259,7 @@ class ImageTerm:
         entropy = None
         if self.entropy_weight != 0.0:
             entropy = (bool(self.entropy_background), self.weight != 0.0)
-        return new_state(M, eyes, cull, self.reference, consts, texture, nv, m, len(uv),
+        return new_state(M, eyes, cull, self.reference, shading, texture, nv, m, len(uv),
                          entropy)
 
     def state(self, mesh, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):
@@ -212,16 +268,16 @@ class ImageTerm:
         img, iws = self._new(mesh, uv, len(P), len(F), lo, scale)
         full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, float(BACKGROUND))
         if self.entropy_weight != 0.0:
-            entropy_init(img[12], img[14])
+            entropy_init(img.IDS, img.ent)
         height, width = self.reference.shape[1:]
-        tiles = build_tiles(img[6], falive, TILE, -(-width // TILE), -(-height // TILE))
+        tiles = build_tiles(img.fbox, falive, TILE, -(-width // TILE), -(-height // TILE))
         return img, tiles, iws
 
     def statistics(self, mesh, img, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):
         """Counters of the run; with ``verify``, a from-scratch render of the final mesh
         compared with the maintained images."""
 
-        counts = dict(zip(STAT_NAMES, (int(x) for x in img[11])))
+        counts = dict(zip(STAT_NAMES, (int(x) for x in img.stats)))
         out = {k: counts[k] for k in ("image_evaluations", "pixels_shaded", "face_rows",
                                       "tile_rebuilds")}
         if counts["run_cycles"] > 0:  # where the time goes
@@ -229,27 +285,27 @@ class ImageTerm:
                 out[f"{k}_share"] = counts[f"{k}_cycles"] / counts["run_cycles"]
         out["rasterizer_share"] = (counts["raster_cycles"] / counts["run_cycles"]
                                    if counts["run_cycles"] > 0 else None)
-        Y, Y0 = img[4], img[3]
+        Y, Y0 = img.Y, img.Y0
         shaded = self.weight != 0.0 or self.entropy_weight == 0.0
         if shaded:
             out["image_sse"] = float(np.sum((Y0 - Y) ** 2))
         entropy = self.entropy_weight != 0.0
         if entropy:
-            CNT, SUM, TOT = img[14][:3]
+            CNT, SUM, TOT = img.ent.counts, img.ent.sums, img.ent.totals
             out["view_entropy"] = [float(view_entropy(s, float(a))) for s, a in zip(SUM, TOT)]
         if verify:
             again, iws = self._new(mesh, uv, len(P), len(F), lo, scale)
             full_render(again, iws, P, F, FW, uv, falive, vhead, cnext, valive,
                         float(BACKGROUND))
             if shaded:
-                out["image_mismatched_pixels"] = int(np.count_nonzero(again[4] != Y))
-            out["face_id_mismatched_pixels"] = int(np.count_nonzero(again[12] != img[12]))
-            out["depth_mismatched_pixels"] = int(np.count_nonzero(again[13] != img[13]))
+                out["image_mismatched_pixels"] = int(np.count_nonzero(again.Y != Y))
+            out["face_id_mismatched_pixels"] = int(np.count_nonzero(again.IDS != img.IDS))
+            out["depth_mismatched_pixels"] = int(np.count_nonzero(again.DZ != img.DZ))
             if entropy:  # the maintained counts and entropies against fresh ones
-                entropy_init(again[12], again[14])
+                entropy_init(again.IDS, again.ent)
                 fresh = np.array([view_entropy(s, float(a))
-                                  for s, a in zip(again[14][1], again[14][2])])
-                out["entropy_count_mismatches"] = int(np.count_nonzero(again[14][0] != CNT))
+                                  for s, a in zip(again.ent.sums, again.ent.totals)])
+                out["entropy_count_mismatches"] = int(np.count_nonzero(again.ent.counts != CNT))
                 out["entropy_max_error"] = float(np.max(np.abs(
                     fresh - np.asarray(out["view_entropy"]))))
         return out

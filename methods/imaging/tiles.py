@@ -3,18 +3,30 @@ overlaps it, to find the faces under a rectangle in one traversal."""
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
 #: Side of the square tiles of the per-view face index, in pixels.
 TILE = 8
 
+#: Tiles of 8 x 8 pixels listed at least this many spare slots (and half their count
+#: again) when built; a tile that fills up makes :func:`_tiles_add` report an overflow
+#: and the engine rebuilds the index.
+TILE_SPARE = 8
+
+#: The tile index: per view and tile, ``ptr`` (V, T + 1) and ``cnt`` (V, T) into
+#: ``items`` (face ids, int32), and ``ibox`` (V, m, 4) int32 the tile range each face is
+#: listed in.
+Tiles = namedtuple("Tiles", "ptr cnt items ibox")
+
 
 @njit(cache=True)
 def build_tiles(fbox, falive, tile, nx, ny):
     """Per view and tile, the live faces whose box overlaps it, with spare room.
 
-    Returns (ptr (V, T + 1), cnt (V, T), items, ibox (V, m, 4) tile ranges listed)."""
+    Returns :data:`Tiles`."""
     n_views, m = fbox.shape[0], fbox.shape[1]
     n_tiles = nx * ny
     cnt = np.zeros((n_views, n_tiles), np.int64)
@@ -34,7 +46,7 @@ def build_tiles(fbox, falive, tile, nx, ny):
     for h in range(n_views):
         for i in range(n_tiles):
             ptr[h, i] = total
-            total += cnt[h, i] + cnt[h, i] // 2 + 8
+            total += cnt[h, i] + cnt[h, i] // 2 + TILE_SPARE
         ptr[h, n_tiles] = total
     items = np.empty(total, np.int32)
     cnt[:] = 0
@@ -45,13 +57,13 @@ def build_tiles(fbox, falive, tile, nx, ny):
                     i = ty * nx + tx
                     items[ptr[h, i] + cnt[h, i]] = f
                     cnt[h, i] += 1
-    return ptr, cnt, items, ibox
+    return Tiles(ptr, cnt, items, ibox)
 
 
 @njit(cache=True)
 def _tiles_add(tiles, h, f, box, tile, nx):
     """List face ``f`` in the tiles its new ``box`` reaches; False if a tile is full."""
-    ptr, cnt, items, ibox = tiles
+    ptr, cnt, items, ibox = tiles.ptr, tiles.cnt, tiles.items, tiles.ibox
     if box[0] > box[1] or box[2] > box[3]:
         return True
     tx0, tx1, ty0, ty1 = box[0] // tile, box[1] // tile, box[2] // tile, box[3] // tile
@@ -77,7 +89,7 @@ def _overlaps(box, rect):
 @njit(cache=True)
 def _gather(tiles, h, rect, fbox, falive, mark, tick, cand, n, tile, nx):
     """Append to ``cand[n:]`` the live, unmarked faces whose box overlaps ``rect``."""
-    ptr, cnt, items, _ = tiles
+    ptr, cnt, items = tiles.ptr, tiles.cnt, tiles.items
     for ty in range(rect[2] // tile, rect[3] // tile + 1):
         for tx in range(rect[0] // tile, rect[1] // tile + 1):
             i = ty * nx + tx

@@ -1,0 +1,146 @@
+"""The named structures the engine's numba loop threads through its helpers.
+
+Each is a ``collections.namedtuple`` of arrays (numba types them as heterogeneous
+tuples and reads fields by name at no cost). They are built once per run, in Python
+(:func:`methods.engine.simplify.simplify_mesh`) or at the start of
+:func:`methods.engine.loop._run`:
+
+============  ==========================================================================
+structure     what it holds
+============  ==========================================================================
+MeshArrays    the welded mesh being simplified and its wedges (changed by collapses)
+Rules         the policy as codes: placement, weights, rule switches
+Terms         read-only inputs of the cost terms (texture borders, κ per face, ...)
+Scratch       per-candidate scratch, overwritten by every evaluation and collapse
+Queue         the lazy priority queue's bookkeeping (stamps, last keys)
+Blocked       rejected candidates waiting for an endpoint's stamp to change
+Log           the collapse log (one row per collapse, CSR list of changed faces)
+============  ==========================================================================
+
+Capacities are named here with what they bound; where a capacity can be exceeded, the
+helper that fills it says what happens (an error, a grown buffer, or a documented
+fallback).
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+#: Faces around one edge kept by ``_edge_faces`` (it still returns the true count; an
+#: edge with more than two faces is rejected as non-manifold before it is used).
+EDGE_FACES_CAP = 8
+#: Wedge pairs across one collapse: at most one per face of the edge.
+WEDGE_PAIRS_CAP = EDGE_FACES_CAP
+#: Distinct wedges of a merged vertex (``_wedge_targets`` raises beyond it).
+WEDGE_TARGETS_CAP = 64
+#: Triangles, boundary edges and link vertices of a Lindstrom–Turk profile; a larger
+#: profile falls back to the quadric's placement and cost (as it always has).
+PROFILE_CAP = 256
+#: Floats of a Garland–Heckbert 1998 wedge quadric over (x, y, z, u, v).
+WEDGE_QUADRIC_SIZE = 31
+#: Floats of a vertex quadric (the upper triangle of a symmetric 4 × 4 matrix).
+QUADRIC_SIZE = 10
+#: Initial blocked-edge records; the table doubles when full.
+BLOCKED_INITIAL = 64
+#: Minimum length of the changed-faces log; it doubles when fewer than
+#: ``LOG_CHANGED_HEADROOM`` slots remain before a collapse.
+LOG_CHANGED_MIN = 16
+#: Slots the changed-faces log keeps free before a collapse (a vertex has far fewer
+#: faces than this).
+LOG_CHANGED_HEADROOM = 4096
+
+#: Counters of the ``kinds`` array (methods.engine.wedges._count_kinds): collapses that
+#: took a twin edge along, collapses that stranded wedges, and the wedges stranded.
+KIND_TWIN = 0
+KIND_STRANDED = 1
+KIND_STRANDED_WEDGES = 2
+N_KINDS = 3
+
+#: Cost-term weights of a run (all floats; 0 switches a term off).
+Weights = namedtuple("Weights", "quadric memoryless canny image entropy")
+
+#: The mesh under simplification: welded positions ``P`` (nv, 3), quadrics ``Q`` (nv,
+#: 10), faces ``F`` (m, 3) and their wedges ``FW`` (m, 3), ``falive`` (m,), corner
+#: lists ``vhead`` (nv,) / ``cnext`` (3m,), ``valive`` (nv,), ``vboundary`` (nv,),
+#: ``wedge_vertex`` (n_wedges,), ``uv`` (n_wedges, 2), ``moved`` (nv,) bool (a vertex
+#: whose position changed), ``WQ`` (n_wedges, 31) wedge quadrics or (1, 31).
+MeshArrays = namedtuple("MeshArrays", "P Q F FW falive vhead cnext valive vboundary "
+                                      "wedge_vertex uv moved WQ")
+
+#: The policy as codes: ``placement`` (a value of PLACEMENTS), ``weights``
+#: (:data:`Weights`), ``cos_limit`` (fold-over), and booleans ``boundary_lock``,
+#: ``seam_rule``, ``boundary_rule``, ``verify``, ``has_uv``, ``use_r5`` (R^5 UVs),
+#: ``uv_fix`` (González 2008's UV correction), ``target`` faces, ``max_collapses``.
+Rules = namedtuple("Rules", "placement weights cos_limit boundary_lock seam_rule "
+                            "boundary_rule verify has_uv use_r5 uv_fix target max_collapses")
+
+#: Read-only inputs of the cost terms: Canny ``borders`` (h, w) bool, ``inv_area``
+#: (1 / total area), ``face_kappa`` (m,) κ of each face's texture patch.
+Terms = namedtuple("Terms", "borders inv_area face_kappa")
+
+#: Lindstrom–Turk profile of an edge, each (PROFILE_CAP, 3): triangle corners
+#: ``tri_a``/``tri_b``/``tri_c``, boundary edges ``bnd_a``/``bnd_b``, ``link`` vertices.
+Profile = namedtuple("Profile", "tri_a tri_b tri_c bnd_a bnd_b link")
+
+#: Wedge-quadric scratch: wedge pairs ``gfrom``/``gto`` (WEDGE_PAIRS_CAP,), merged
+#: ``targets`` (WEDGE_TARGETS_CAP,), one group quadric ``g`` (31,).
+WedgeScratch = namedtuple("WedgeScratch", "gfrom gto targets g")
+
+#: R^5 scratch: the patch's triangles ``tri_a``/``tri_b``/``tri_c`` (PROFILE_CAP, 3)
+#: and their UVs ``uv_a``/``uv_b``/``uv_c`` (PROFILE_CAP, 2); the merged vertex's wedge
+#: ``targets`` (WEDGE_TARGETS_CAP,) and their ``new_uv`` (WEDGE_TARGETS_CAP, 2).
+R5Scratch = namedtuple("R5Scratch", "tri_a tri_b tri_c uv_a uv_b uv_c targets new_uv")
+
+#: Per-candidate scratch: ``mark``/``tick`` (dedup without clearing), neighbour lists
+#: ``nbr_u``/``nbr_v`` (nv,), ``efaces`` (EDGE_FACES_CAP,), wedge pairs
+#: ``wmap_from``/``wmap_to`` (WEDGE_PAIRS_CAP,), the summed quadric ``qsum`` (10,), the
+#: candidate position ``p`` (3,), ``profile`` (:data:`Profile`), ``wq``
+#: (:data:`WedgeScratch`), ``r5`` (:data:`R5Scratch`), ``no_record`` (0, 2) for the
+#: Canny walk.
+Scratch = namedtuple("Scratch", "mark tick nbr_u nbr_v efaces wmap_from wmap_to qsum p "
+                                "profile wq r5 no_record")
+
+#: Lazy queue bookkeeping: per-vertex ``stamp`` (nv,) and ``pushed_at`` (nv,), the
+#: ``last_key`` dict (edge key -> last cost) and ``tally`` (2,) int64 counters indexed
+#: by EVALUATIONS and MISMATCHES.
+Queue = namedtuple("Queue", "stamp pushed_at last_key tally")
+
+#: Counters of :data:`Queue`'s ``tally``.
+EVALUATIONS = 0
+MISMATCHES = 1
+
+#: Blocked edges: ``end`` (cap, 2) endpoints, ``next`` (cap, 2) links in each end's list,
+#: ``live`` (cap,), ``head`` (nv,) first record of each vertex, ``count`` (1,) used.
+Blocked = namedtuple("Blocked", "end next live head count")
+
+#: The collapse log: ``cost``, ``removed``, ``kept`` (c,), ``pos`` (c, 3), ``faces`` (c,
+#: 2) removed faces (-1: none), ``start`` (c + 1,) and ``changed`` (grown as needed)
+#: the CSR list of faces that changed, ``count`` (2,) = (collapses, changed entries).
+Log = namedtuple("Log", "cost removed kept pos faces start changed count")
+
+#: Entries of :data:`Log`'s ``count``.
+LOG_COLLAPSES = 0
+LOG_CHANGED = 1
+
+
+def new_scratch(nv):
+    """A :data:`Scratch` for a mesh of ``nv`` welded vertices."""
+    cap = PROFILE_CAP
+    profile = Profile(*(np.empty((cap, 3)) for _ in range(6)))
+    wq = WedgeScratch(np.empty(WEDGE_PAIRS_CAP, np.int64), np.empty(WEDGE_PAIRS_CAP, np.int64),
+                      np.empty(WEDGE_TARGETS_CAP, np.int64), np.empty(WEDGE_QUADRIC_SIZE))
+    r5 = R5Scratch(np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)),
+                   np.empty((cap, 2)), np.empty((cap, 2)), np.empty((cap, 2)),
+                   np.empty(WEDGE_TARGETS_CAP, np.int64), np.empty((WEDGE_TARGETS_CAP, 2)))
+    return Scratch(np.zeros(nv, np.int64), np.zeros(1, np.int64), np.empty(nv, np.int64),
+                   np.empty(nv, np.int64), np.empty(EDGE_FACES_CAP, np.int64),
+                   np.empty(WEDGE_PAIRS_CAP, np.int64), np.empty(WEDGE_PAIRS_CAP, np.int64),
+                   np.empty(QUADRIC_SIZE), np.empty(3), profile, wq, r5,
+                   np.empty((0, 2), np.int64))
+
+#: The image term's state as the cost and commit functions see it: ``img`` (the image
+#: state of methods.imaging.state), ``tiles`` (its tile index, rebuilt when a commit
+#: overflows it) and ``iws`` (the image scratch).
+Images = namedtuple("Images", "img tiles iws")
