@@ -35,18 +35,9 @@ def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
     """True when the edge's two faces use different wedges for one of its ends."""
     if _edge_faces(u, v, F, vhead, cnext, falive, efaces) != 2:
         return False
-    f, g = efaces[0], efaces[1]
-    for x in (u, v):
-        wf = -1
-        wg = -1
-        for j in range(3):
-            if F[f, j] == x:
-                wf = FW[f, j]
-            if F[g, j] == x:
-                wg = FW[g, j]
-        if wf != wg:
-            return True
-    return False
+    fu, fv = corner_wedges(F, FW, efaces[0], u, v)
+    gu, gv = corner_wedges(F, FW, efaces[1], u, v)
+    return fu != gu or fv != gv
 
 
 @njit(cache=True)
