@@ -342,3 +342,26 @@ def test_texture_quadrics_keep_an_affine_texture_map_exact():
     mesh, affine = affine_textured_grid()
     out = simplify_mesh(mesh, 40, Policy(texture_weight=1.0)).mesh
     np.testing.assert_allclose(out.uv, affine(out.positions), atol=1e-9)
+
+
+def test_vertex_kind_rules_do_not_depend_on_the_order_of_an_edges_ends():
+    """Each rule table mirrored (ends swapped) keeps the other end: the verdict on
+    (a, b) is the verdict on (b, a) with first and second exchanged."""
+    from methods.engine.policy import (
+        BOUNDARY_RULE,
+        END_KEEP_FIRST,
+        END_KEEP_SECOND,
+        SEAM_RULE,
+        VERTEX_BOUNDARY,
+        VERTEX_INTERIOR,
+        VERTEX_ORDINARY,
+        VERTEX_SEAM,
+    )
+
+    swap = {END_KEEP_FIRST: END_KEEP_SECOND, END_KEEP_SECOND: END_KEEP_FIRST}
+    for table in (SEAM_RULE, BOUNDARY_RULE):
+        for a, b in itertools.product(range(2), repeat=2):
+            assert table[b, a] == swap.get(int(table[a, b]), int(table[a, b]))
+    # the prose: a seam vertex stays when joined to an ordinary one; so does a boundary one
+    assert SEAM_RULE[VERTEX_SEAM, VERTEX_ORDINARY] == END_KEEP_FIRST
+    assert BOUNDARY_RULE[VERTEX_INTERIOR, VERTEX_BOUNDARY] == END_KEEP_SECOND
