@@ -11,6 +11,11 @@ Textured Meshes, I3D 2003. The pipeline, in :meth:`PerceptualMT.simplify`::
     refine          budget refinement with a raise and a lower queue, from the
                     previous view's cut (§5.1)
 
+The MT and its bounds depend on the model and ``texture_weight`` only, so a run builds
+them once per model and reuses them for every budget and ``error`` (methods.mt.cache;
+``mt_cache`` in the statistics says whether a job built them, and ``mt_seconds`` is 0
+when it did not).
+
 The method is view-dependent: the runner images each evaluation view with that
 view's cut at the budget (:class:`ViewCuts`), starting each view from the previous
 one's cut; the mesh returned by ``simplify`` is the view-independent cut (object-space
@@ -59,8 +64,7 @@ import numpy as np
 
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
-from methods.mt.bounds import preprocess
-from methods.mt.dag import build_mt
+from methods.mt.cache import mt_and_bounds
 from methods.mt.errors import ERRORS
 from methods.mt.refine import Refiner
 
@@ -96,7 +100,7 @@ class ViewCuts:
 
 class PerceptualMT(Method):
     name = "perceptual-mt"
-    version = "1"
+    version = "2"  # 2: the MT is built from the engine's logged wedges and UVs (exact, not re-derived)
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "
@@ -120,18 +124,18 @@ class PerceptualMT(Method):
             raise ValueError(f"error must be one of {', '.join(ERRORS)}, got {p.error!r}")
         if not p.ppd > 0:
             raise ValueError(f"ppd must be positive, got {p.ppd}")
-        t = time.perf_counter()
-        mt = build_mt(mesh, texture_weight=p.texture_weight)
-        t_mt = time.perf_counter() - t
-        bounds = preprocess(mt)
+        # one MT and its bounds per (model, parameters), whatever the budget or error
+        mt, bounds, source, t_mt = mt_and_bounds(mesh, p.texture_weight, self.version,
+                                                 (ctx or {}).get("cache_dir"))
         lighting = "gouraud" if p.lighting == "auto" else p.lighting
         refiner = Refiner(mt, bounds, p.error, lighting, p.specular != "false", p.ppd,
                           p.peak_sensitivity, p.silhouette_factor)
         refiner.refine_object(target_faces)
         simplified = refiner.cut.mesh().replace(name=mesh.name, metadata=dict(mesh.metadata))
         stats = {"mt_nodes": mt.n_nodes, "mt_triangles": mt.n_triangles,
-                 "mt_coarsest_faces": mt.coarsest_faces, "mt_seconds": t_mt,
-                 "preprocess_seconds": bounds.seconds,
+                 "mt_coarsest_faces": mt.coarsest_faces, "mt_cache": source,
+                 "mt_seconds": t_mt,
+                 "preprocess_seconds": bounds.seconds if source == "built" else 0.0,
                  "images": "per view, each view's cut at the budget; geometry and "
                            "silhouettes from the view-independent (object-space) cut"}
         stop = None

@@ -512,6 +512,51 @@ def test_method_returns_a_view_independent_cut_and_per_view_cuts():
     assert len(result.view_cuts.stats["refine_ms"]) == 24
 
 
+def test_mt_cache_gives_the_built_mt_and_bounds_back(tmp_path):
+    """Built, then from memory, then (in a 'new worker') from disk: the same arrays,
+    and the same cuts for every budget and error."""
+    import dataclasses
+
+    from methods.mt import cache
+
+    mesh = make_torus(16, 8, texture_size=64)
+    built, b_bounds, source, seconds = cache.mt_and_bounds(mesh, 1.0, "v", tmp_path)
+    assert source == "built" and seconds > 0 and len(list(tmp_path.glob("mt-*.npz"))) == 1
+    assert cache.mt_and_bounds(mesh, 1.0, "v", tmp_path)[2] == "memory"
+    cache._LAST.clear()  # a new worker process
+    mt, bounds, source, seconds = cache.mt_and_bounds(mesh, 1.0, "v", tmp_path)
+    assert source == "disk" and seconds == 0.0
+    for a, b in ((built, mt), (b_bounds, bounds)):
+        for f in dataclasses.fields(a):
+            x, y = getattr(a, f.name), getattr(b, f.name)
+            if isinstance(x, np.ndarray):
+                assert x.dtype == y.dtype and np.array_equal(x, y), f.name
+            elif f.name != "stats":
+                assert x == y or x is y, f.name
+    assert mt.texture is mesh.texture
+    # another parameter or version is another MT
+    cache._LAST.clear()
+    assert cache.mt_and_bounds(mesh, 0.5, "v", tmp_path)[2] == "built"
+    assert cache.mt_and_bounds(mesh, 1.0, "w", tmp_path)[2] == "built"
+    assert len(list(tmp_path.glob("mt-*.npz"))) == 3
+
+
+def test_method_gives_the_same_result_with_a_cached_mt(tmp_path):
+    from methods.mt import cache
+
+    mesh = make_torus(16, 8, texture_size=64)
+    cache._LAST.clear()
+    fresh = PerceptualMT().simplify(mesh, 60)
+    cache._LAST.clear()
+    PerceptualMT().simplify(mesh, 80, {"cache_dir": str(tmp_path)})
+    cache._LAST.clear()
+    again = PerceptualMT().simplify(mesh, 60, {"cache_dir": str(tmp_path)})
+    assert again.stats["mt_cache"] == "disk" and fresh.stats["mt_cache"] == "built"
+    assert np.array_equal(fresh.mesh.positions, again.mesh.positions)
+    assert np.array_equal(fresh.mesh.faces, again.mesh.faces)
+    assert np.array_equal(fresh.mesh.uv, again.mesh.uv)
+
+
 def test_method_params_are_checked():
     with pytest.raises(ParamError, match="error"):
         parse_params(PerceptualMT.Params, ["error=psnr"])

@@ -134,7 +134,9 @@ def _run_job(job: Job, run_dir: Path, record: dict) -> None:
 
     peak = _PeakMemory()
     # shading-aware methods optimise for the evaluation's shading unless told otherwise
-    ctx = {"shading": job.protocol.shading, "specular": job.protocol.specular}
+    ctx = {"shading": job.protocol.shading, "specular": job.protocol.specular,
+           # work a method may share between the run's jobs (e.g. perceptual-mt's MT)
+           "cache_dir": str(run_dir / "cache")}
     result = run_method(method_cls(params), mesh, job.target_faces, ctx)
     stats = dict(result.stats)
     stats["peak_mb"] = peak.megabytes()

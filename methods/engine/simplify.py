@@ -18,6 +18,8 @@ from methods.engine.state import (
     KIND_TWIN,
     LOG_CHANGED,
     LOG_COLLAPSES,
+    LOG_PAIRS,
+    LOG_WEDGES,
     N_KINDS,
     WEDGE_QUADRIC_SIZE,
     Images,
@@ -240,9 +242,14 @@ def _log_in_input_numbering(log, prep: _Prepared, a: MeshArrays):
         faces = np.where(faces >= 0, fperm[np.maximum(faces, 0)], -1)
         changed = fperm[changed]
         Q, valive = Q[np.argsort(vperm)], valive[np.argsort(vperm)]
+    n_pairs, n_wedges = int(log.count[LOG_PAIRS]), int(log.count[LOG_WEDGES])
     out = {"removed": removed, "kept": kept, "position": log.pos[:n] * prep.scale + prep.lo,
            "removed_faces": faces, "changed_start": log.start[:n + 1],
-           "changed_faces": changed, "cost": log.cost[:n]}
+           "changed_faces": changed, "cost": log.cost[:n],
+           # wedges (render vertices) are never renumbered
+           "pair_start": log.pair_start[:n + 1], "wedge_pairs": log.pairs[:n_pairs],
+           "wedge_start": log.wedge_start[:n + 1], "wedges": log.wedges[:n_wedges],
+           "wedge_uv": log.wedge_uv[:n_wedges]}
     return out, Q, valive
 
 
