@@ -81,11 +81,13 @@ def run(args) -> int:
     elif suite and suite.variants is not None:
         variants = list(suite.variants)
     else:
-        variants = [(e.name, {}) for e in methods if e.available and not e.load().view_dependent]
+        variants = [(e.name, {}) for e in methods if e.available]
     for name, params in variants:  # fail on typos before any work starts
         parse_params(methods.load(name).Params, [f"{k}={v}" for k, v in params.items()])
 
     meshes = {m: resolve_model(m) for m in models}
+    if not args.methods and not (suite and suite.variants is not None):
+        print(_default_methods_line(methods, [n for n, _ in variants], meshes), file=sys.stderr)
     budgets = {}
     for m, mesh in meshes.items():
         if args.faces:
@@ -109,6 +111,18 @@ def run(args) -> int:
           f"{shadings}) with {args.jobs} workers -> {out}", file=sys.stderr)
     execute(jobs, out, workers=args.jobs, timeout=args.timeout)
     return finish(out, build_report=not args.no_report)
+
+
+def _default_methods_line(methods, names: list[str], meshes: dict) -> str:
+    """The first line of a run with no ``--methods``: every available method, and which
+    were left out (unavailable) or will be skipped on some models (they need UVs)."""
+    notes = [f"{e.name} (unavailable: {e.problem})" for e in methods if not e.available]
+    no_uv = [m for m, mesh in meshes.items() if mesh.uv is None]
+    for name in names:
+        if methods.load(name).needs_uv and no_uv:
+            notes.append(f"{name} on {', '.join(no_uv)} (needs texture coordinates)")
+    return (f"bench: every available method ({len(names)})"
+            + (f"; skipped: {'; '.join(notes)}" if notes else ""))
 
 
 def finish(out: Path, build_report: bool = True) -> int:

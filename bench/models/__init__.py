@@ -31,6 +31,9 @@ class ModelSpec:
     source: str
     loader: Callable[[], Mesh]
     requires: dict = field(default_factory=dict)
+    #: For a model made by simplifying another one: the faces it is made with. Such a
+    #: model costs a simplification to load, so listings show it without building it.
+    derived_faces: int | None = None
 
     def load(self) -> Mesh:
         mesh = self.loader()
@@ -129,16 +132,17 @@ BARREL = ModelSpec(
 BUNNY_TEXTURED_815 = ModelSpec(
     "bunny-textured-815", "bunny-textured pre-decimated to 815 faces (Table 1 of "
     "González et al. 2008: 815 -> 100)", "bunny-textured, quadric engine (texture "
-    "quadrics)", _predecimated(BUNNY_TEXTURED, 815), requires={"pymeshlab": "pymeshlab>=2023.12"})
+    "quadrics)", _predecimated(BUNNY_TEXTURED, 815), requires={"pymeshlab": "pymeshlab>=2023.12"},
+    derived_faces=815)
 BUNNY_TEXTURED_4698 = ModelSpec(
     "bunny-textured-4698", "bunny-textured pre-decimated to 4,698 faces (Table 1 of "
     "González et al. 2008: 4,698 -> 500)", "bunny-textured, quadric engine (texture "
     "quadrics)", _predecimated(BUNNY_TEXTURED, 4698),
-    requires={"pymeshlab": "pymeshlab>=2023.12"})
+    requires={"pymeshlab": "pymeshlab>=2023.12"}, derived_faces=4698)
 TORUS_13810 = ModelSpec(
     "torus-13810", "the textured torus pre-decimated to 13,810 faces (Table 1 of "
     "González et al. 2008: 13,810 -> 1,000)", "torus, quadric engine (texture quadrics)",
-    _predecimated(TORUS, 13810))
+    _predecimated(TORUS, 13810), derived_faces=13810)
 
 
 def _looks_like_path(word: str) -> bool:
