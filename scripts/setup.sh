@@ -20,6 +20,8 @@ PYTHON=${PYTHON:-$(command -v python3.11 || command -v python3)}
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q -e '.[test]'
+# Compile the numba kernels once (cached on disk), so no run or test pays for it.
+.venv/bin/bench warmup
 
 if [ "${1:-}" != "--no-run" ]; then
     # The main job: every available method on the bunny and the textured torus at 2 % and
