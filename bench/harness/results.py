@@ -46,12 +46,16 @@ def shading_label(protocol: dict) -> str:
     return protocol["shading"] + ("-spec" if protocol.get("specular") else "")
 
 
-def write_record(path: Path, record: dict) -> Path:
-    """Write ``record`` as JSON to ``path`` atomically."""
+def write_record(path: Path, record: dict, sort_keys: bool = True) -> Path:
+    """Write ``record`` as JSON to ``path`` atomically (NumPy values as plain numbers).
+
+    Keys are sorted unless ``sort_keys`` is false, for files read by people in the
+    order they were built (the LOD sidecar of ``bench simplify``).
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     with os.fdopen(fd, "w") as f:
-        json.dump(record, f, indent=1, sort_keys=True, default=_jsonable)
+        json.dump(record, f, indent=1, sort_keys=sort_keys, default=_jsonable)
     os.replace(tmp, path)
     return path
 

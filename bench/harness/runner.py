@@ -30,7 +30,8 @@ import numpy as np
 from bench.harness.results import SCHEMA_VERSION, write_record
 from metrics.protocol import Protocol
 
-__all__ = ["Job", "plan", "execute", "run_job", "method_label", "environment", "SHEET_VIEWS"]
+__all__ = ["SHEET_VIEWS", "Job", "environment", "evaluate_result", "execute", "method_label",
+           "plan", "run_job"]
 
 #: Protocol views shown in the report's image sheets (spread over the sphere).
 SHEET_VIEWS = (0, 7, 13, 20)
@@ -117,7 +118,7 @@ def _run_job(job: Job, run_dir: Path, record: dict) -> None:
     from bench.method import parse_params, run_method
     from bench.models import resolve_model
     from bench.registry import registry
-    from metrics.protocol import evaluate, original_images
+    from metrics.protocol import original_images
 
     method_cls = registry("method").load(job.method)
     record["method"] = {"name": method_cls.name, "version": method_cls.version,
@@ -150,19 +151,40 @@ def _run_job(job: Job, run_dir: Path, record: dict) -> None:
                   artifacts=_save_artifacts(run_dir, job, result.artifacts))
 
     reference = original_images(mesh, job.protocol)
-    view_meshes = None
-    if result.view_cuts is not None:  # view-dependent: each view imaged with its own cut
-        from metrics.views import protocol_cameras
-
-        view_meshes = result.view_cuts(protocol_cameras(mesh), job.protocol)
-        stats.update(getattr(result.view_cuts, "stats", {}))
-    ev = evaluate(mesh, result.mesh, job.protocol, reference_images=reference,
-                  view_meshes=view_meshes)
+    ev, view_stats = evaluate_result(mesh, result, job.protocol, reference)
+    stats.update(view_stats)
     record.update(metrics=ev.metrics, per_view=ev.per_view, seconds=ev.seconds,
                   silhouette_histogram=ev.silhouette_histogram, status="ok")
     if ev.errors:  # metrics that raised: the job is ok, those values are missing
         record["metric_errors"] = ev.errors
     _save_sheet_images(run_dir, job, mesh, reference, ev.images)
+
+
+def evaluate_result(original, result, protocol: Protocol, reference_images=None):
+    """Evaluate a method's result against ``original`` under ``protocol``, as every
+    record is (``bench run``) and as ``bench simplify --evaluate`` does per level.
+
+    A view-dependent result is imaged view by view with its own cuts
+    (:attr:`~bench.method.SimplifyResult.view_cuts`); its other metrics use its
+    view-independent mesh.
+
+    Returns
+    -------
+    Evaluation, dict
+        The evaluation, and the view cuts' statistics (empty for other methods), which
+        belong with the method's.
+    """
+    from metrics.protocol import evaluate
+
+    view_meshes, view_stats = None, {}
+    if result.view_cuts is not None:  # view-dependent: each view imaged with its own cut
+        from metrics.views import protocol_cameras
+
+        view_meshes = result.view_cuts(protocol_cameras(original), protocol)
+        view_stats = dict(getattr(result.view_cuts, "stats", {}))
+    ev = evaluate(original, result.mesh, protocol, reference_images=reference_images,
+                  view_meshes=view_meshes)
+    return ev, view_stats
 
 
 def _save_sheet_images(run_dir: Path, job: Job, mesh, reference, images) -> None:

@@ -11,6 +11,7 @@ of the file first, so the user gets one line naming the file and the problem.
 
 from __future__ import annotations
 
+import hashlib
 import io
 import logging
 import os
@@ -24,7 +25,8 @@ from bench.errors import InputError
 from bench.io.validate import build_mesh, warn
 from bench.mesh import Mesh
 
-__all__ = ["FORMATS", "check_output_path", "load_mesh", "save_mesh"]
+__all__ = ["FORMATS", "SCENE_FORMATS", "check_output_path", "load_mesh", "lod_path", "save_lods",
+           "save_mesh"]
 
 #: Supported file extensions and what they keep.
 FORMATS = {
@@ -35,6 +37,9 @@ FORMATS = {
     ".off": "positions, colours",
     ".stl": "positions only",
 }
+
+#: Formats that hold several named meshes in one file (an LOD chain is one file there).
+SCENE_FORMATS = (".glb", ".gltf")
 
 logging.getLogger("trimesh").setLevel(logging.ERROR)  # our own warnings say what matters
 
@@ -110,16 +115,45 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> list[Path]:
         for fname, data in files.items():
             written.append(_write_atomic(path.parent / fname, data))
         return written
-    data = tm.export(file_type=ext[1:])
-    if isinstance(data, dict):  # .gltf: the JSON plus its buffers, renamed after OUT
-        gltf = data.pop("model.gltf")
-        written = []
-        for name, blob in data.items():
-            own = f"{path.stem}_{name}"
-            gltf = gltf.replace(f'"{name}"'.encode(), f'"{own}"'.encode())
-            written.append(_write_atomic(path.parent / own, blob))
-        return [_write_atomic(path, gltf)] + written
-    return [_write_atomic(path, data if isinstance(data, bytes) else data.encode())]
+    return _write_export(tm, path)
+
+
+def lod_path(path: str | os.PathLike, name: str) -> Path:
+    """Where level ``name`` of an LOD chain written to ``path`` goes in a format with
+    one mesh per file: ``<stem>_<name><ext>`` beside ``path`` (``out.obj`` ->
+    ``out_LOD1.obj``, with ``out_LOD1.mtl`` and ``out_LOD1.png`` for a textured level).
+    """
+    path = Path(path)
+    return path.with_name(f"{path.stem}_{name}{path.suffix}")
+
+
+def save_lods(levels: list[tuple[str, Mesh]], path: str | os.PathLike) -> dict[str, list[Path]]:
+    """Write an LOD chain: ``levels`` are (name, mesh) pairs, the most detailed first.
+
+    In a format of :data:`SCENE_FORMATS` it is one file, ``path``, with one named mesh
+    (and node, all at the origin) per level, as engines import LOD groups; levels that
+    share a texture share one material and image. In any other format each level is a
+    file of its own at :func:`lod_path` and ``path`` itself is not written.
+
+    Returns
+    -------
+    dict of str to list of Path
+        For each level, the files that hold it (the one scene file in a scene format).
+    """
+    path = check_output_path(path)
+    if path.suffix.lower() not in SCENE_FORMATS:
+        return {name: save_mesh(mesh, lod_path(path, name)) for name, mesh in levels}
+    import trimesh
+
+    scene, materials = trimesh.Scene(), {}
+    for name, mesh in levels:
+        key = _texture_key(mesh.texture)
+        tm = _to_trimesh(mesh, material_name=path.stem, material=materials.get(key))
+        if mesh.uv is not None:
+            materials.setdefault(key, tm.visual.material)
+        scene.add_geometry(tm, geom_name=name, node_name=name)
+    written = _write_export(scene, path)
+    return {name: written for name, _ in levels}
 
 
 def check_output_path(path: str | os.PathLike) -> Path:
@@ -183,7 +217,32 @@ def _image_array(image) -> np.ndarray:
     return np.asarray(image, dtype=np.uint8).copy()
 
 
-def _to_trimesh(mesh: Mesh, material_name: str):
+def _texture_key(texture: np.ndarray | None):
+    """Identifies a texture by content, so levels whose method copied the image still
+    share one material (and the file one image)."""
+    if texture is None:
+        return None
+    return texture.shape, hashlib.sha1(np.ascontiguousarray(texture).tobytes()).hexdigest()
+
+
+def _write_export(tm, path: Path) -> list[Path]:
+    """Export a trimesh mesh or scene in the format of ``path``'s extension; the files
+    written (a ``.gltf`` with its buffers renamed after ``path``)."""
+    data = tm.export(file_type=path.suffix.lower()[1:])
+    if isinstance(data, dict):  # .gltf: the JSON plus its buffers, renamed after OUT
+        gltf = data.pop("model.gltf")
+        written = []
+        for name, blob in data.items():
+            own = f"{path.stem}_{name}"
+            gltf = gltf.replace(f'"{name}"'.encode(), f'"{own}"'.encode())
+            written.append(_write_atomic(path.parent / own, blob))
+        return [_write_atomic(path, gltf)] + written
+    return [_write_atomic(path, data if isinstance(data, bytes) else data.encode())]
+
+
+def _to_trimesh(mesh: Mesh, material_name: str, material=None):
+    """``mesh`` as a trimesh mesh; a textured one gets ``material`` if given (so the
+    levels of a chain can share one), else a new material named ``material_name``."""
     import trimesh
     from PIL import Image
 
@@ -192,8 +251,9 @@ def _to_trimesh(mesh: Mesh, material_name: str):
         kwargs["vertex_normals"] = mesh.normals
     tm = trimesh.Trimesh(mesh.positions, mesh.faces, process=False, **kwargs)
     if mesh.uv is not None:
-        image = Image.fromarray(mesh.texture) if mesh.texture is not None else None
-        material = trimesh.visual.material.SimpleMaterial(image=image, name=material_name)
+        if material is None:
+            image = Image.fromarray(mesh.texture) if mesh.texture is not None else None
+            material = trimesh.visual.material.SimpleMaterial(image=image, name=material_name)
         tm.visual = trimesh.visual.TextureVisuals(uv=mesh.uv, material=material)
     elif mesh.colors is not None:
         tm.visual = trimesh.visual.ColorVisuals(tm, vertex_colors=mesh.colors)
