@@ -294,13 +294,13 @@ def plates(draw):
     return Mesh(np.array(positions, float), np.array(faces))
 
 
-def similarity(draw_scale: float, angle: float, shift) -> np.ndarray:
+def similarity(scale: float, angle: float, shift) -> np.ndarray:
     """A 4x4 similarity transform: rotation about (1, 2, 3), scale, then shift."""
     axis = np.array([1.0, 2.0, 3.0]) / math.sqrt(14)
     k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     rotation = np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
     m = np.eye(4)
-    m[:3, :3] = draw_scale * rotation
+    m[:3, :3] = scale * rotation
     m[:3, 3] = shift
     return m
 
