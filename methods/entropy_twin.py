@@ -25,8 +25,8 @@ The pipeline of Algorithm 1:
    vertex together with its faces — the paper's alternative to a fake vertex ("Other
    vertices are simply translated to cap the holes"). A fake vertex is needed only by
    index-only multiresolution schemes; here no seam can open, because the welded
-   topology is never split (the geometric ``seam_cracks`` metric can still count a
-   long chord of a simplified open boundary that passes near a seam). Every collapse
+   topology is never split (``seam_cracks`` counts none: the chords of a simplified
+   hole keep their ends on the hole, see :mod:`metrics.topology`). Every collapse
    is of a real edge, so the statistics count the collapses (``collapses``), those
    that collapsed a twin with it (``twin_collapses``), those that translated stranded
    duplicates (``fake_collapses``: where the paper would add a fake edge) and the
