@@ -381,14 +381,15 @@ def _replay(Pw, Pn, F, FW, uv, has_uv, use_wq, WQ, wedge_vertex, wedge_pos, log_
         for k in range(3):
             if abs(pn[k] - Pn[v, k]) > _MOVE_TOLERANCE:
                 moved = True
-        # wedge pairs across the removed faces (the engine's _wedge_pairs)
+        # the distinct wedge pairs across the removed faces (the engine's _wedge_pairs:
+        # off a seam both faces give the same pair, which merges once)
         npairs = 0
         for s in range(2):
             r = log_faces[i, s]
             if r < 0:
                 continue
             wu, wv = corner_wedges(F, FW, r, u, v)
-            if wu != wv:
+            if wu != wv and not (npairs == 1 and pairs_from[0] == wu and pairs_to[0] == wv):
                 pairs_from[npairs] = wu
                 pairs_to[npairs] = wv
                 npairs += 1
