@@ -218,7 +218,7 @@ def rebuild_normals(mesh: Mesh, angle: float = NORMALS_ANGLE) -> Mesh:
 
 class EntropyTwin(Method):
     name = "entropy-twin"
-    version = "1"
+    version = "2"  # 2: the texture-quadric pre-simplification merges each wedge once
     summary = ("half-edge collapses by viewpoint-entropy change over 20 views, twin edges "
                "at seams, UV correction, normals rebuilt")
     reference = ("González, Gumbau, Chover & Castelló, Mesh simplification for interactive "

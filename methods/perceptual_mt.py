@@ -100,7 +100,9 @@ class ViewCuts:
 
 class PerceptualMT(Method):
     name = "perceptual-mt"
-    version = "2"  # 2: the MT is built from the engine's logged wedges and UVs (exact, not re-derived)
+    # 2: the MT is built from the engine's logged wedges and UVs (exact, not re-derived);
+    # 3: the engine merges each wedge pair once (texture quadrics were counted twice)
+    version = "3"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "

@@ -55,13 +55,26 @@ def corner_wedges(F, FW, f, a, b):
 
 @njit(cache=True)
 def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
-    """Pairs (wedge of u -> wedge of v) across the faces of edge (u, v): each side of
-    the edge merges its own two wedges. Returns the number of pairs."""
+    """The distinct pairs (wedge of u -> wedge of v) across the faces of edge (u, v):
+    each side of the edge merges its own two wedges. Returns the number of pairs.
+
+    Off a seam both faces of the edge use the same two wedges, so they give one pair,
+    not two: every caller adds a pair's wedge quadric (and interpolates its UV) once per
+    pair, and a repeated pair would count the removed wedge twice. Counted twice at
+    every collapse, a wedge quadric grows geometrically along a chain of collapses
+    until rounding in its reduction over (u, v) swamps the geometry (costs of -1e14 on
+    a textured box, whose corners then go first)."""
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     npairs = 0
     for i in range(min(k, efaces.shape[0])):
         wu, wv = corner_wedges(F, FW, efaces[i], u, v)
-        if wu != wv and npairs < wmap_from.shape[0]:
+        if wu == wv:
+            continue
+        seen = False
+        for j in range(npairs):
+            if wmap_from[j] == wu and wmap_to[j] == wv:
+                seen = True
+        if not seen and npairs < wmap_from.shape[0]:
             wmap_from[npairs] = wu
             wmap_to[npairs] = wv
             npairs += 1
