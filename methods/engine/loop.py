@@ -193,16 +193,10 @@ def _log_wedges(log, npairs, nt, mesh, rules, scratch):
     and the merged vertex's wedges (``scratch.wq.targets``) with their new UVs, so the
     log alone says how every render vertex changed."""
     n_p, n_w = log.count[LOG_PAIRS], log.count[LOG_WEDGES]
-    for i in range(npairs):
-        a, b = scratch.wmap_from[i], scratch.wmap_to[i]
-        seen = False
-        for j in range(log.pair_start[log.count[LOG_COLLAPSES]], n_p):
-            if log.pairs[j, 0] == a and log.pairs[j, 1] == b:
-                seen = True
-        if not seen:
-            log.pairs[n_p, 0] = a
-            log.pairs[n_p, 1] = b
-            n_p += 1
+    for i in range(npairs):  # distinct already (methods.engine.wedges._wedge_pairs)
+        log.pairs[n_p, 0] = scratch.wmap_from[i]
+        log.pairs[n_p, 1] = scratch.wmap_to[i]
+        n_p += 1
     for i in range(nt):
         w = scratch.wq.targets[i]
         log.wedges[n_w] = w
