@@ -32,6 +32,7 @@ from bench.io.atlas import (
     mixed_faces,
     pack_materials,
     split_materials,
+    wedge_tiles,
 )
 from bench.io.meshio import load_mesh, save_lods, save_mesh
 from bench.method import run_method
@@ -336,6 +337,28 @@ def test_mixed_faces_are_written_with_a_warning(loaded, tmp_path):
 @pytest.fixture(scope="module")
 def two_materials():
     return make_two_materials()
+
+
+@pytest.mark.parametrize("method", ["quadric", "memoryless", "canny-texture", "qslim-texture"])
+def test_no_collapse_mixes_two_materials(two_materials, method):
+    """At 10 % no face of the result has UV corners in two tiles.
+
+    On the suite's engine, besides, every UV stays inside its material's tile (the
+    engine clamps merged wedges' UVs there: without it quadric left 2 faces sampling
+    the other texture) and every face keeps the material of its hemisphere (the seam
+    rule keeps the equator's vertices on the equator). MeshLab's qslim-texture keeps
+    the materials' UVs apart too but moves seam vertices off the seam: one face of the
+    bricks reaches z = -0.1, so its hemisphere is not checked."""
+    target = round(0.1 * two_materials.n_faces)
+    result = run_method(registry("method").load(method)(), two_materials, target).mesh
+    assert abs(result.n_faces - target) <= 2
+    assert materials_of(result) is not None
+    assert int(mixed_faces(result).sum()) == 0
+    if method != "qslim-texture":
+        tiles = wedge_tiles(result)[np.unique(result.faces)]
+        uv = result.uv[np.unique(result.faces)]
+        assert ((uv >= tiles[:, :2]) & (uv <= tiles[:, 2:])).all()
+        assert np.array_equal(face_materials(result), hemisphere_of(result))
 
 
 def test_simplified_result_round_trips_with_its_materials(two_materials, tmp_path):
