@@ -13,10 +13,11 @@ understands. An OBJ with two or more ``usemtl`` materials, or a glTF whose primi
 use two or more materials, is loaded as one mesh whose materials are packed into a
 texture atlas built at load time (:mod:`bench.io.atlas`): each material's texture
 becomes a tile, texel for texel, with an 8-texel gutter repeating its edge (bilinear
-filtering and the first three mip levels never mix materials); a material with only a
-colour becomes a small solid tile; each material's UVs are mapped affinely into its
-tile, and ``mesh.metadata["atlas"]`` lists the materials in file order with their
-tiles. A face's material is the tile its UV centroid lies in
+filtering and the first three mip levels never mix materials); a textured material's
+``Kd`` or base colour factor is recorded, not multiplied in, as for a file with one
+material; a material with only a colour becomes a small solid tile of it; each
+material's UVs are mapped affinely into its tile, and ``mesh.metadata["atlas"]`` lists
+the materials in file order with their tiles. A face's material is the tile its UV centroid lies in
 (:func:`bench.io.atlas.face_materials`), which survives every method, where a stored
 per-face array would not. Repeating textures (UVs outside [0, 1]) are replicated in
 their tile as often as the UVs span periods (no vertex is split), up to 8,192 texels a
