@@ -5,11 +5,12 @@ Textured Meshes, I3D 2003. The pipeline, in :meth:`PerceptualMT.simplify`::
 
     build_mt        engine collapse sequence -> MT (methods.mt.dag, §2.3, §4)
     preprocess      per node: sphere, normal cones, texel luminance range, texture
-                    deviation (methods.mt.bounds, §4)
+                    deviation, each holding its descendants' (methods.mt.bounds, §4)
     node_errors     per view: visibility, silhouettes, contrast, frequency, CSF,
                     imperceptibility distance (§3, §5.2-5.4; methods.mt.csf)
     refine          budget refinement with a raise and a lower queue, from the
-                    previous view's cut (§5.1)
+                    previous view's cut (§5.1), which saves work but does not change
+                    the cut (methods.mt.refine)
 
 The method is view-dependent: the runner images each evaluation view with that
 view's cut at the budget (:class:`ViewCuts`), starting each view from the previous
@@ -69,7 +70,8 @@ class ViewCuts:
     """Per-view cuts at a budget for the runner: ``view_cuts(cameras, protocol)``.
 
     Views are refined in the order given, each from the previous view's cut (the
-    first from the view-independent cut); ``stats`` collects the refinement times.
+    first from the view-independent cut); the cuts do not depend on that order, only
+    the work does. ``stats`` collects the refinement times.
     """
 
     def __init__(self, refiner: Refiner, budget: int, lighting: str, specular: str):
@@ -96,7 +98,9 @@ class ViewCuts:
 
 class PerceptualMT(Method):
     name = "perceptual-mt"
-    version = "1"
+    # 2: node bounds nested up the MT and refinement ties broken by node index, so a
+    # view's cut no longer depends on the cut refinement starts from (issue 18, item 3)
+    version = "2"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "
