@@ -92,6 +92,7 @@ class DaskExecutor:
     def __enter__(self) -> Self:
         distributed = _distributed()
         from bench.harness.dask_worker import PLUGIN, JobProcesses  # needs distributed
+
         if self.scheduler:
             try:
                 self.client = distributed.Client(self.scheduler, timeout=CONNECT_TIMEOUT)
@@ -111,9 +112,11 @@ class DaskExecutor:
             self.client = distributed.Client(self.cluster)
         try:
             self.client.register_plugin(JobProcesses(), name=PLUGIN)
-        except Exception:
+        except Exception as exc:  # noqa: BLE001 (whatever a worker raised, one line here)
             self.__exit__(None, None, None)
-            raise
+            raise ClusterError(f"the Dask workers cannot take bench's jobs ({type(exc).__name__}: "
+                               f"{_first_line(exc)}); install this package, the same version, "
+                               "on every worker") from None
         where = self.scheduler or f"a LocalCluster of {self.workers} workers"
         print(f"bench: Dask: {where}, {self._threads()} worker threads"
               + (f"; dashboard {link}" if (link := self._dashboard()) else ""),
@@ -191,7 +194,15 @@ class DaskExecutor:
     def _result(self, future, job: Job) -> JobResult:
         distributed = _distributed()
         if future.status == "finished":
-            result = future.result()
+            try:
+                result = future.result()
+            except Exception as exc:  # noqa: BLE001 (e.g. a worker with another bench)
+                return failed_result(job, f"the Dask worker's result cannot be read here: "
+                                     f"{type(exc).__name__}: {_first_line(exc)}",
+                                     {"executor": "dask"})
+            if result is None:  # the worker saw the job cancelled, yet it is wanted
+                return failed_result(job, "the Dask worker stopped this job as cancelled",
+                                     {"executor": "dask"})
             attempts = self._attempts(future.key)
             if attempts is not None:
                 result.record["environment"]["worker"]["attempts"] = attempts
