@@ -154,6 +154,25 @@ def test_job_that_keeps_losing_its_worker_fails_once(ico, tmp_path):
 
 
 @pytest.mark.slow
+def test_job_past_the_timeout_fails_and_its_worker_goes_on(ico, tmp_path):
+    """Dask has no per-task timeout: the worker kills the job's process at --timeout,
+    the job gets one failed record, and the same worker runs the next job."""
+    marker = tmp_path / "attempts.txt"
+    late = Job(ico, "sleep", 100, {"seconds": "600", "marker": str(marker)}, SMALL)
+    after = Job(ico, "qslim", 100, {}, SMALL)
+    execute([late, after], tmp_path / "out", workers=1, timeout=60, progress=False,
+            executor="dask")
+    records = _records(tmp_path / "out")
+    assert records[late.key]["status"] == "failed"
+    assert records[late.key]["error"] == "timed out after 60 s"
+    assert records[after.key]["status"] == "ok", records[after.key]["error"]
+    assert records[late.key]["environment"]["worker"]["name"] == \
+        records[after.key]["environment"]["worker"]["name"]
+    (line,) = marker.read_text().splitlines()  # one attempt: a timeout is not retried
+    assert _gone(int(line.split()[0]))
+
+
+@pytest.mark.slow
 def test_interrupted_dask_run_is_resumed(ico, tmp_path):
     """Ctrl-C during a Dask run keeps every finished record and stops the running jobs'
     processes; --resume (here with the local pool) runs exactly the rest."""

@@ -108,7 +108,8 @@ class DaskExecutor:
                                   LOST_WORKER_RETRIES}):
                 self.cluster = distributed.LocalCluster(
                     n_workers=self.workers, threads_per_worker=1, processes=True,
-                    dashboard_address=":0", silence_logs=logging.ERROR)
+                    dashboard_address=":0", silence_logs=logging.ERROR,
+                    preload=["bench.harness.dask_worker"])  # Ctrl-C: the client's alone
             self.client = distributed.Client(self.cluster)
         try:
             self.client.register_plugin(JobProcesses(), name=PLUGIN)

@@ -7,6 +7,7 @@ checked, and by the workers when they unpickle the plugin and the task.
 from __future__ import annotations
 
 import platform
+import signal
 import threading
 from pathlib import Path
 
@@ -15,7 +16,7 @@ from distributed.worker import thread_state
 
 from bench.harness.jobs import Job, JobProcess, JobResult
 
-__all__ = ["PLUGIN", "JobProcesses", "run_on_worker"]
+__all__ = ["PLUGIN", "JobProcesses", "dask_setup", "run_on_worker"]
 
 #: The name the worker plugin is registered under.
 PLUGIN = "bench-job-processes"
@@ -71,3 +72,14 @@ def run_on_worker(job: Job, mesh, timeout: float) -> JobResult | None:
         return task is None or task.state in ("cancelled", "released", "forgotten")
 
     return processes.run(job, mesh, timeout, cancelled)
+
+
+def dask_setup(worker) -> None:
+    """Preloaded into the workers of the LocalCluster that ``bench run`` starts.
+
+    Ctrl-C in a terminal reaches every process of its group, these workers included;
+    the client alone answers it (it keeps the finished records and closes the cluster),
+    so here it is ignored rather than printed as each worker's traceback.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
