@@ -632,7 +632,7 @@ def test_runner_images_each_view_with_its_own_cut(tmp_path, monkeypatch):
     path = tmp_path / "torus.obj"
     save_mesh(make_torus(16, 8, texture_size=64), path)
     job = Job(str(path), "perceptual-mt", 60, {}, Protocol(shading="gouraud", specular=True))
-    record = run_job(job, tmp_path)
+    record = run_job(job, tmp_path / "cache").record
     assert record["status"] == "ok", record["error"]
     assert len(record["stats"]["refine_ms"]) == 24
     assert len(record["per_view"]["d_rms"]) == 24

@@ -116,7 +116,7 @@ def test_lt2000_suites_name_their_experiments():
 @pytest.mark.parametrize("name", sorted(SUITES))
 def test_suite_variants_are_valid_method_parameters(name):
     """What ``bench run --suite`` checks before any work starts, for every suite."""
-    from bench.harness.runner import _fmt
+    from bench.harness.jobs import _fmt
     from bench.method import parse_params
     from bench.registry import registry
 

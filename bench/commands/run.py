@@ -9,7 +9,7 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.harness.runner import execute, plan
+from bench.harness.runner import EXECUTORS, execute, plan, remaining
 from bench.harness.suites import evaluation_protocols, get_suite
 from bench.method import parse_params, resolve_target
 from bench.models import resolve_model
@@ -36,7 +36,14 @@ def add_parser(sub, name: str) -> None:
                    "evaluation protocols; the options above override them)")
     p.add_argument("--out", help="run directory (default: reports/run-YYYYmmdd-HHMMSS)")
     p.add_argument("--jobs", "-j", type=int, default=os.cpu_count() or 1,
-                   help="worker processes (default: CPU count)")
+                   help="worker processes, here or in the LocalCluster of --executor dask "
+                   "without --scheduler (default: CPU count)")
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="what runs the jobs: a pool of processes here (local, the default) "
+                   "or a Dask cluster (dask; README, 'Running on a cluster')")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="a running Dask scheduler, e.g. tcp://HOST:8786 (with --executor "
+                   "dask; without it a LocalCluster of --jobs workers is started)")
     p.add_argument("--resume", action="store_true", help="skip jobs whose record exists in DIR")
     p.add_argument("--timeout", type=float, default=900.0, help="seconds per job (default 900)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML report")
@@ -73,6 +80,11 @@ def parse_variants(text: str | None) -> list[tuple[str, dict]]:
 
 
 def run(args) -> int:
+    if args.scheduler and args.executor != "dask":
+        raise InputError("--scheduler is the address of a Dask scheduler: it needs "
+                         "--executor dask")
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     suite = get_suite(args.suite) if args.suite else None
     models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
     methods = registry("method")
@@ -103,13 +115,17 @@ def run(args) -> int:
     out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
     jobs = plan(models, variants, budgets, protocols)
     if args.resume:
-        jobs = [j for j in jobs if not (out / "records" / f"{j.key}.json").exists()]
+        jobs = remaining(jobs, out)
     out.mkdir(parents=True, exist_ok=True)
     shadings = " x " + "/".join(
         p.shading + ("+specular" if p.specular else "") for p in protocols) + " shading"
+    where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
+             f"with {args.jobs} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
+                                            else ""))
     print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets"
-          f"{shadings}) with {args.jobs} workers -> {out}", file=sys.stderr)
-    execute(jobs, out, workers=args.jobs, timeout=args.timeout)
+          f"{shadings}) {where} -> {out}", file=sys.stderr)
+    execute(jobs, out, workers=args.jobs, timeout=args.timeout, executor=args.executor,
+            scheduler=args.scheduler)
     return finish(out, build_report=not args.no_report)
 
 

@@ -42,7 +42,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.harness.runner import environment, evaluate_result
+from bench.harness.jobs import environment, evaluate_result
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult, run_method
 from metrics.protocol import Evaluation, Protocol
