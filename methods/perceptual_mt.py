@@ -5,12 +5,11 @@ Textured Meshes, I3D 2003. The pipeline, in :meth:`PerceptualMT.simplify`::
 
     build_mt        engine collapse sequence -> MT (methods.mt.dag, §2.3, §4)
     preprocess      per node: sphere, normal cones, texel luminance range, texture
-                    deviation, each holding its descendants' (methods.mt.bounds, §4)
+                    deviation (methods.mt.bounds, §4)
     node_errors     per view: visibility, silhouettes, contrast, frequency, CSF,
                     imperceptibility distance (§3, §5.2-5.4; methods.mt.csf)
     refine          budget refinement with a raise and a lower queue, from the
-                    previous view's cut (§5.1), which saves work but does not change
-                    the cut (methods.mt.refine)
+                    previous view's cut (§5.1)
 
 The MT and its bounds depend on the model and ``texture_weight`` only, so a run builds
 them once per model and reuses them for every budget and ``error`` (methods.mt.cache;
@@ -74,8 +73,7 @@ class ViewCuts:
     """Per-view cuts at a budget for the runner: ``view_cuts(cameras, protocol)``.
 
     Views are refined in the order given, each from the previous view's cut (the
-    first from the view-independent cut); the cuts do not depend on that order, only
-    the work does. ``stats`` collects the refinement times.
+    first from the view-independent cut); ``stats`` collects the refinement times.
     """
 
     def __init__(self, refiner: Refiner, budget: int, lighting: str, specular: str):
@@ -103,10 +101,8 @@ class ViewCuts:
 class PerceptualMT(Method):
     name = "perceptual-mt"
     # 2: the MT is built from the engine's logged wedges and UVs (exact, not re-derived);
-    # 3: the engine merges each wedge pair once (texture quadrics were counted twice);
-    # 4: node bounds nested up the MT and refinement ties broken by node index, so a
-    #    view's cut no longer depends on the cut refinement starts from
-    version = "4"
+    # 3: the engine merges each wedge pair once (texture quadrics were counted twice)
+    version = "3"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "
