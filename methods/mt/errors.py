@@ -5,19 +5,20 @@ screen-space and silhouette-weighted comparison metrics.
 Errors are monotone up the MT: :func:`node_errors` gives each node the largest of its
 own error and its descendants' (children first, in index order). A node's bounds are
 its own (methods.mt.bounds), and a child's created triangles are shared among several
-parents, so on main a parent's sphere was smaller than a child's on 17 % of
-torus-puzzle's arcs and its silhouette cone narrower on 30 %; in a view, 13 % of the
-arcs had a parent error below the child's, and 2 % a parent culled as back-facing
-while the child was visible. The two-queue refinement (§5.1) then converged to a cut
-that depended on where it started (at 98 % on torus-puzzle, d_rms 10.65 from the
-previous view's cut, 10.79 from the object-space cut, 11.41 from the coarsest).
+parents, so a parent's sphere can be smaller than a child's (on 17 % of
+torus-puzzle's arcs) and its silhouette cone narrower (30 %); in a view, 13 % of the
+arcs have a parent's own error below the child's, and 2 % a parent culled as
+back-facing while the child is visible. Version 1 refined by these own errors, and
+the two-queue refinement (§5.1) converged to a cut that depended on where it started
+(at 98 % on torus-puzzle, d_rms 10.65 from the previous view's cut, 10.79 from the
+object-space cut, 11.41 from the coarsest).
 
 The maximum is §3.4's error of an LOD, "the maximum imperceptibility distance of all
 the local simplification operations used to generate it", applied to the LOD that
 applying a node implies (it applies all its descendants); the texture deviation is
-made monotone the same way. With it the greedy refinement minimises the LOD's
-imperceptibility distance at the budget (methods.mt.refine), whatever cut it starts
-from, and a node is invisible (error 0) only if all its descendants are. The
+made monotone the same way. With it the cut at a budget refines the nodes of largest
+error, whatever cut refinement starts from (methods.mt.refine), and a node has error
+0 (invisible, or below threshold) only if all its descendants have. The
 alternative, nesting the bounds (a node's sphere enclosing its children's, its cones
 containing theirs), also makes every error monotone, but replaces the paper's
 per-node bounds by bounds of the node's whole history: a late collapse's sphere then
