@@ -7,9 +7,11 @@ Textured Meshes, I3D 2003. The pipeline, in :meth:`PerceptualMT.simplify`::
     preprocess      per node: sphere, normal cones, texel luminance range, texture
                     deviation (methods.mt.bounds, §4)
     node_errors     per view: visibility, silhouettes, contrast, frequency, CSF,
-                    imperceptibility distance (§3, §5.2-5.4; methods.mt.csf)
+                    imperceptibility distance (§3, §5.2-5.4; methods.mt.csf), each
+                    node's the largest of its subtree (§3.4, methods.mt.errors)
     refine          budget refinement with a raise and a lower queue, from the
-                    previous view's cut (§5.1)
+                    previous view's cut (§5.1), which saves work but does not change
+                    the cut (methods.mt.refine)
 
 The MT and its bounds depend on the model and ``texture_weight`` only, so a run builds
 them once per model and reuses them for every budget and ``error`` (methods.mt.cache;
@@ -35,7 +37,9 @@ Choices where the paper is vague:
   Luebke & Erikson's: with ψ the angle between the cone axis and the direction to the
   eye, θ the cone's half-angle and α the half-angle the bounding sphere subtends,
   the node is front-facing if ψ + θ + α < 90°, back-facing if ψ − θ − α > 90°, and
-  on the silhouette otherwise.
+  on the silhouette otherwise. Each error is then raised to the largest of the node's
+  descendants' (applying the node applies them), so a node invisible by its own
+  bounds whose descendants are not carries their error.
 - *Lighting* follows the evaluation renderer (metrics.render): a headlight at the
   eye, so L = H = the direction to the eye; luminance ``T (ka + kd n·l) + ks
   (n·h)^s`` with ka 0.1, kd 0.9, ks 0.3, s 32, clipped at 1 (§5.4's formula with the
@@ -73,7 +77,8 @@ class ViewCuts:
     """Per-view cuts at a budget for the runner: ``view_cuts(cameras, protocol)``.
 
     Views are refined in the order given, each from the previous view's cut (the
-    first from the view-independent cut); ``stats`` collects the refinement times.
+    first from the view-independent cut); the cuts do not depend on that order, only
+    the work does. ``stats`` collects the refinement times.
     """
 
     def __init__(self, refiner: Refiner, budget: int, lighting: str, specular: str):
@@ -101,8 +106,10 @@ class ViewCuts:
 class PerceptualMT(Method):
     name = "perceptual-mt"
     # 2: the MT is built from the engine's logged wedges and UVs (exact, not re-derived);
-    # 3: the engine merges each wedge pair once (texture quadrics were counted twice)
-    version = "3"
+    # 3: the engine merges each wedge pair once (texture quadrics were counted twice);
+    # 4: a node's view error is the largest of its subtree and refinement ranks equal
+    #    errors by node index, so a view's cut does not depend on where refinement starts
+    version = "4"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "

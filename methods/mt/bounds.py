@@ -35,6 +35,11 @@ Choices where the paper is vague:
   UVs that drifted out of the node's region), the distance to the nearest created
   triangle. It is made monotone (a node's deviation is at least its children's), so
   that refining never raises the error of the cut.
+- *The other bounds are each node's own*, as §4 computes them, not nested up the MT:
+  a child's created triangles are shared among several parents, so a parent's
+  sphere can be smaller than a child's and its cones narrower. The view errors are
+  made monotone instead, by the same maximum over children as the deviation
+  (methods.mt.errors says why).
 """
 
 from __future__ import annotations
@@ -68,6 +73,9 @@ class NodeBounds:
         L_min, L_max of the covered texels (0..1), or the material gray twice.
     deviation : ndarray (c,)
         Texture deviation in model units, monotone up the MT.
+    child_start, children : ndarray (c + 1,), (kc,) int64
+        The MT's children lists (CSR): the view errors take each node's maximum over
+        its children (methods.mt.errors), as the deviation does here.
     textured : bool
     seconds : float
         Wall time of the preprocessing.
@@ -81,6 +89,8 @@ class NodeBounds:
     shading_angle: np.ndarray
     luminance: np.ndarray
     deviation: np.ndarray
+    child_start: np.ndarray
+    children: np.ndarray
     textured: bool
     seconds: float = 0.0
 
@@ -131,11 +141,12 @@ def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
     # §5.2: the contrast the node can induce, from the texels it covers
     lrange = _luminance_ranges(lum, fp_start, fp)
     # §2.2: how far the node moves the surface (monotone up the MT)
+    child_start, children = mt.child_start.astype(np.int64), mt.children.astype(np.int64)
     dev = _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
-                      mt.uv is not None, fp_start, fp, start, split, own,
-                      mt.child_start.astype(np.int64), mt.children.astype(np.int64))
-    return NodeBounds(center, radius, sax, sang, hax, hang, lrange, dev, textured,
-                      time.perf_counter() - start_time)
+                      mt.uv is not None, fp_start, fp, start, split, own, child_start,
+                      children)
+    return NodeBounds(center, radius, sax, sang, hax, hang, lrange, dev, child_start,
+                      children, textured, time.perf_counter() - start_time)
 
 
 def node_triangles(mt: MultiTriangulation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

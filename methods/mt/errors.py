@@ -1,6 +1,31 @@
 """Per-view errors of Multi-Triangulation nodes (Williams et al. 2003, §3 and §5): the
 imperceptibility distance of a node's perceptual bound, or the paper's object-space,
-screen-space and silhouette-weighted comparison metrics."""
+screen-space and silhouette-weighted comparison metrics.
+
+Errors are monotone up the MT: :func:`node_errors` gives each node the largest of its
+own error and its descendants' (children first, in index order). A node's bounds are
+its own (methods.mt.bounds), and a child's created triangles are shared among several
+parents, so a parent's sphere can be smaller than a child's (on 17 % of
+torus-puzzle's arcs) and its silhouette cone narrower (30 %); in a view, 13 % of the
+arcs have a parent's own error below the child's, and 2 % a parent culled as
+back-facing while the child is visible. Version 1 refined by these own errors, and
+the two-queue refinement (§5.1) converged to a cut that depended on where it started
+(at 98 % on torus-puzzle, d_rms 10.65 from the previous view's cut, 10.79 from the
+object-space cut, 11.41 from the coarsest).
+
+The maximum is §3.4's error of an LOD, "the maximum imperceptibility distance of all
+the local simplification operations used to generate it", applied to the LOD that
+applying a node implies (it applies all its descendants); the texture deviation is
+made monotone the same way. With it the cut at a budget refines the nodes of largest
+error, whatever cut refinement starts from (methods.mt.refine), and a node has error
+0 (invisible, or below threshold) only if all its descendants have. The
+alternative, nesting the bounds (a node's sphere enclosing its children's, its cones
+containing theirs), also makes every error monotone, but replaces the paper's
+per-node bounds by bounds of the node's whole history: a late collapse's sphere then
+spans every collapse that fed its triangles. Measured at 98 % on torus-puzzle under
+Gouraud shading with specular highlights, nested bounds gave d_rms 12.72 and FLIP
+0.0792, the maximum 10.93 and 0.0675.
+"""
 
 from __future__ import annotations
 
@@ -108,9 +133,19 @@ def _node_errors(center, radius, sax, sang, hax, hang, lum, dev, eye, forward, r
     return out
 
 
+@njit(cache=True)
+def _children_max(out, child_start, children):
+    """Raise each node's error to its children's, in place, children first (a child's
+    index is smaller): afterwards every node's error is the maximum over its subtree."""
+    for i in range(out.shape[0]):
+        for j in range(child_start[i], child_start[i + 1]):
+            out[i] = max(out[i], out[children[j]])
+
+
 def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perceptual",
                 lighting: str = "gouraud", specular: bool = True, ppd: float = 32.0,
-                csf: ContrastSensitivity | None = None, silhouette_factor: float = 10.0):
+                csf: ContrastSensitivity | None = None, silhouette_factor: float = 10.0,
+                subtree_max: bool = True):
     """Per-node errors from one camera (see the module docstring).
 
     Parameters
@@ -127,12 +162,17 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
         Observer: pixels per degree of visual angle.
     csf : ContrastSensitivity, optional
     silhouette_factor : float
+    subtree_max : bool
+        Give each node the largest error of its subtree (the module docstring); False
+        gives each node's own error, for tests and diagnostics.
 
     Returns
     -------
     errors : ndarray of shape (c,)
+        Monotone up the MT when ``subtree_max``.
     status : ndarray of shape (c,) int8
-        0 invisible (culled or back-facing), 1 front-facing, 2 silhouette.
+        0 invisible (culled or back-facing), 1 front-facing, 2 silhouette: each node's
+        own test.
     """
     if error not in ERRORS:
         raise ValueError(f"error must be one of {', '.join(ERRORS)}, got {error!r}")
@@ -156,4 +196,6 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
                  float(camera.near), float(camera.far), float(resolution), float(ppd),
                  ERRORS[error], LIGHTINGS[lighting], SPECULAR if specular else 0.0,
                  float(silhouette_factor), c_lo, c_hi, table, out, status)
+    if subtree_max:
+        _children_max(out, bounds.child_start, bounds.children)
     return out, status
