@@ -80,6 +80,10 @@ class Method:
     view_dependent: ClassVar[bool] = False
     needs_uv: ClassVar[bool] = False  #: not applicable to meshes without texture coordinates
     requires: ClassVar[dict[str, str]] = {}  #: import name -> pip requirement
+    #: run once on two tiny meshes before a process's first timed job of this method, so
+    #: compilation and first-call costs stay out of ``wall_seconds``
+    #: (bench.harness.warmup); False for a method whose calls act beyond their result
+    warms_up: ClassVar[bool] = True
 
     @dataclass
     class Params:

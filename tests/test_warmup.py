@@ -20,3 +20,23 @@ def test_a_method_is_warmed_up_once_per_process():
     other = Quadric.Params(texture_weight=0.0)
     warmup.WARM.discard((Quadric.name, repr(other)))
     assert warmup.warm_up(Quadric, other) > 0
+
+
+def test_a_method_that_does_not_warm_up_is_not_run(tmp_path):
+    from bench.method import Method
+
+    calls = []
+
+    class Effects(Method):
+        name = "effects"
+        warms_up = False
+
+        def simplify(self, mesh, target_faces, ctx=None):
+            calls.append(mesh.name)
+            raise AssertionError("a method that does not warm up was run by the warm-up")
+
+    assert warmup.warm_up(Effects) == 0.0
+    assert calls == []
+    Effects.warms_up = True  # the same class warming up: run on both tiny meshes
+    assert warmup.warm_up(Effects) > 0
+    assert calls == ["warmup", "warmup-textured"]

@@ -51,12 +51,13 @@ def tiny_meshes() -> tuple[Mesh, Mesh]:
 
 def warm_up(method_cls, params=None, ctx=None) -> float:
     """Run ``method_cls(params)`` on both tiny meshes once per process and return the
-    seconds it took (0 when this process already warmed it up). Failures are ignored:
-    a method that cannot run on a tiny mesh fails, or not, on the real one."""
+    seconds it took (0 when this process already warmed it up, or when the method says
+    it ``warms_up`` not). Failures are ignored: a method that cannot run on a tiny mesh
+    fails, or not, on the real one."""
     from bench.method import run_method
 
     key = (method_cls.name, repr(params))
-    if key in WARM:
+    if key in WARM or not getattr(method_cls, "warms_up", True):
         return 0.0
     start = time.perf_counter()
     for mesh in tiny_meshes():

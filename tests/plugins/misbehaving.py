@@ -44,6 +44,7 @@ class Sleep(Method):
     worker under, or to interrupt."""
 
     name = "sleep"
+    warms_up = False  # a warm-up would be an attempt that sleeps and writes the marker
 
     @dataclass
     class Params:
@@ -69,6 +70,7 @@ class KillWorker(Method):
     would, on every attempt."""
 
     name = "kill-worker"
+    warms_up = False
 
     def simplify(self, mesh, target_faces, ctx=None):
         import signal
