@@ -26,7 +26,9 @@ __all__ = ["CannyTexture", "crossing_share"]
 
 class CannyTexture(Method):
     name = "canny-texture"
-    version = "3"  # 2: quadric base with texture quadrics; 3: superseded entries dropped
+    # 2: quadric base with texture quadrics; 3: superseded entries dropped; 4: the
+    # quadric base merges each wedge pair once (as quadric 3)
+    version = "4"
     summary = "quadric (or memoryless) cost + Canny texture-border penalty (own engine)"
     reference = ("González, Castelló & Chover, A texture-based metric extension for "
                  "simplification methods, GRAPP 2007")

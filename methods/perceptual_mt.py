@@ -96,7 +96,7 @@ class ViewCuts:
 
 class PerceptualMT(Method):
     name = "perceptual-mt"
-    version = "1"
+    version = "2"  # 2: the MT from quadric 3's collapse sequence (wedge pairs merged once)
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "

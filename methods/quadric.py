@@ -30,7 +30,10 @@ __all__ = ["Quadric"]
 
 class Quadric(Method):
     name = "quadric"
-    version = "2"  # 2: texture quadrics (GH98) on meshes with UVs
+    # 2: texture quadrics (GH98) on meshes with UVs; 3: each wedge pair of a collapse
+    # merged once (a pair listed twice added its quadric twice, and interpolated UVs
+    # were blended twice)
+    version = "3"
     summary = "Garland-Heckbert 97/98 quadrics (texture per wedge) on the suite's engine"
     reference = ("Garland & Heckbert, Surface simplification using quadric error metrics, "
                  "SIGGRAPH 1997; ... with color and texture, IEEE Visualization 1998")

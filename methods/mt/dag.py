@@ -51,7 +51,7 @@ from numba import njit
 
 from bench.mesh import Mesh
 from methods.engine.quadrics import _uv_minimiser
-from methods.engine.wedges import corner_wedges
+from methods.engine.wedges import add_pair, corner_wedges
 
 __all__ = ["MultiTriangulation", "Cut", "build_mt", "from_log"]
 
@@ -388,10 +388,7 @@ def _replay(Pw, Pn, F, FW, uv, has_uv, use_wq, WQ, wedge_vertex, wedge_pos, log_
             if r < 0:
                 continue
             wu, wv = corner_wedges(F, FW, r, u, v)
-            if wu != wv:
-                pairs_from[npairs] = wu
-                pairs_to[npairs] = wv
-                npairs += 1
+            npairs = add_pair(wu, wv, pairs_from, pairs_to, npairs)
         # the star of u and v (alive faces), and the distinct wedges after pairing
         ns = 0
         nt = 0
