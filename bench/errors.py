@@ -42,5 +42,14 @@ class MethodError(BenchError):
     exit_code = 1
 
 
+class ClusterError(BenchError):
+    """The Dask executor cannot run: ``distributed`` is missing, the scheduler cannot be
+    reached, or it dropped the run."""
+
+
+class RenderError(BenchError, RuntimeError):
+    """The evaluation renderer cannot run in this process (no usable EGL context)."""
+
+
 class MeshWarning(UserWarning):
     """Something about an input mesh the user should know, which did not stop us."""

@@ -16,6 +16,11 @@ A method is a class with class attributes describing it and one ``simplify`` cal
 
 Register it under the ``bench.methods`` entry-point group and it appears in
 ``bench list methods`` and can be used by ``bench simplify`` and ``bench run``.
+
+``ctx`` is a dict or None. Under ``bench run`` it holds the evaluation's ``shading``
+and ``specular`` (for methods that optimise for them) and ``cache_dir``, a directory
+of the run where a method may keep work that its other jobs can reuse (keyed by the
+model's ``content_hash``, its parameters and its version).
 """
 
 from __future__ import annotations

@@ -26,8 +26,8 @@ __all__ = ["CannyTexture", "crossing_share"]
 
 class CannyTexture(Method):
     name = "canny-texture"
-    # 2: quadric base with texture quadrics; 3: superseded entries dropped; 4: the
-    # quadric base merges each wedge pair once (as quadric 3)
+    # 2: quadric base with texture quadrics; 3: superseded entries dropped; 4: a wedge
+    # merges once per collapse (the quadric base counted it once per face of the edge)
     version = "4"
     summary = "quadric (or memoryless) cost + Canny texture-border penalty (own engine)"
     reference = ("González, Castelló & Chover, A texture-based metric extension for "

@@ -25,8 +25,8 @@ The pipeline of Algorithm 1:
    vertex together with its faces — the paper's alternative to a fake vertex ("Other
    vertices are simply translated to cap the holes"). A fake vertex is needed only by
    index-only multiresolution schemes; here no seam can open, because the welded
-   topology is never split (the geometric ``seam_cracks`` metric can still count a
-   long chord of a simplified open boundary that passes near a seam). Every collapse
+   topology is never split (``seam_cracks`` counts none: the chords of a simplified
+   hole keep their ends on the hole, see :mod:`metrics.topology`). Every collapse
    is of a real edge, so the statistics count the collapses (``collapses``), those
    that collapsed a twin with it (``twin_collapses``), those that translated stranded
    duplicates (``fake_collapses``: where the paper would add a fake edge) and the
@@ -218,9 +218,7 @@ def rebuild_normals(mesh: Mesh, angle: float = NORMALS_ANGLE) -> Mesh:
 
 class EntropyTwin(Method):
     name = "entropy-twin"
-    # 2: the pre-simplification (texture quadrics) merges each wedge pair once, as
-    # quadric 3; results change only where it runs (inputs over 20 times the target)
-    version = "2"
+    version = "2"  # 2: the texture-quadric pre-simplification merges each wedge once
     summary = ("half-edge collapses by viewpoint-entropy change over 20 views, twin edges "
                "at seams, UV correction, normals rebuilt")
     reference = ("González, Gumbau, Chover & Castelló, Mesh simplification for interactive "

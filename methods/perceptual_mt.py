@@ -5,11 +5,17 @@ Textured Meshes, I3D 2003. The pipeline, in :meth:`PerceptualMT.simplify`::
 
     build_mt        engine collapse sequence -> MT (methods.mt.dag, §2.3, §4)
     preprocess      per node: sphere, normal cones, texel luminance range, texture
-                    deviation (methods.mt.bounds, §4)
+                    deviation, each holding its descendants' (methods.mt.bounds, §4)
     node_errors     per view: visibility, silhouettes, contrast, frequency, CSF,
                     imperceptibility distance (§3, §5.2-5.4; methods.mt.csf)
     refine          budget refinement with a raise and a lower queue, from the
-                    previous view's cut (§5.1)
+                    previous view's cut (§5.1), which saves work but does not change
+                    the cut (methods.mt.refine)
+
+The MT and its bounds depend on the model and ``texture_weight`` only, so a run builds
+them once per model and reuses them for every budget and ``error`` (methods.mt.cache;
+``mt_cache`` in the statistics says whether a job built them, and ``mt_seconds`` is 0
+when it did not).
 
 The method is view-dependent: the runner images each evaluation view with that
 view's cut at the budget (:class:`ViewCuts`), starting each view from the previous
@@ -59,8 +65,7 @@ import numpy as np
 
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
-from methods.mt.bounds import preprocess
-from methods.mt.dag import build_mt
+from methods.mt.cache import mt_and_bounds
 from methods.mt.errors import ERRORS
 from methods.mt.refine import Refiner
 
@@ -69,7 +74,8 @@ class ViewCuts:
     """Per-view cuts at a budget for the runner: ``view_cuts(cameras, protocol)``.
 
     Views are refined in the order given, each from the previous view's cut (the
-    first from the view-independent cut); ``stats`` collects the refinement times.
+    first from the view-independent cut); the cuts do not depend on that order, only
+    the work does. ``stats`` collects the refinement times.
     """
 
     def __init__(self, refiner: Refiner, budget: int, lighting: str, specular: str):
@@ -96,7 +102,11 @@ class ViewCuts:
 
 class PerceptualMT(Method):
     name = "perceptual-mt"
-    version = "2"  # 2: the MT from quadric 3's collapse sequence (wedge pairs merged once)
+    # 2: the MT is built from the engine's logged wedges and UVs (exact, not re-derived);
+    # 3: the engine merges each wedge pair once (texture quadrics were counted twice);
+    # 4: node bounds nested up the MT and refinement ties broken by node index, so a
+    #    view's cut no longer depends on the cut refinement starts from
+    version = "4"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "
@@ -120,18 +130,18 @@ class PerceptualMT(Method):
             raise ValueError(f"error must be one of {', '.join(ERRORS)}, got {p.error!r}")
         if not p.ppd > 0:
             raise ValueError(f"ppd must be positive, got {p.ppd}")
-        t = time.perf_counter()
-        mt = build_mt(mesh, texture_weight=p.texture_weight)
-        t_mt = time.perf_counter() - t
-        bounds = preprocess(mt)
+        # one MT and its bounds per (model, parameters), whatever the budget or error
+        mt, bounds, source, t_mt = mt_and_bounds(mesh, p.texture_weight, self.version,
+                                                 (ctx or {}).get("cache_dir"))
         lighting = "gouraud" if p.lighting == "auto" else p.lighting
         refiner = Refiner(mt, bounds, p.error, lighting, p.specular != "false", p.ppd,
                           p.peak_sensitivity, p.silhouette_factor)
         refiner.refine_object(target_faces)
         simplified = refiner.cut.mesh().replace(name=mesh.name, metadata=dict(mesh.metadata))
         stats = {"mt_nodes": mt.n_nodes, "mt_triangles": mt.n_triangles,
-                 "mt_coarsest_faces": mt.coarsest_faces, "mt_seconds": t_mt,
-                 "preprocess_seconds": bounds.seconds,
+                 "mt_coarsest_faces": mt.coarsest_faces, "mt_cache": source,
+                 "mt_seconds": t_mt,
+                 "preprocess_seconds": bounds.seconds if source == "built" else 0.0,
                  "images": "per view, each view's cut at the budget; geometry and "
                            "silhouettes from the view-independent (object-space) cut"}
         stop = None

@@ -30,9 +30,8 @@ __all__ = ["Quadric"]
 
 class Quadric(Method):
     name = "quadric"
-    # 2: texture quadrics (GH98) on meshes with UVs; 3: each wedge pair of a collapse
-    # merged once (a pair listed twice added its quadric twice, and interpolated UVs
-    # were blended twice)
+    # 2: texture quadrics (GH98) on meshes with UVs; 3: a wedge merges once per
+    # collapse (its quadric and UV were counted once per face of the edge)
     version = "3"
     summary = "Garland-Heckbert 97/98 quadrics (texture per wedge) on the suite's engine"
     reference = ("Garland & Heckbert, Surface simplification using quadric error metrics, "

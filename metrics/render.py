@@ -61,6 +61,7 @@ References
 from __future__ import annotations
 
 import os
+import platform
 
 # Must precede any import of pyrender or PyOpenGL (see the module docstring).
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -324,9 +325,14 @@ def _offscreen(width: int, height: int):
         try:
             _OFFSCREEN = _pyrender.OffscreenRenderer(width, height)
         except Exception as error:
-            raise RuntimeError(
-                "cannot create an EGL rendering context; on Debian install libegl1 "
-                "libegl-mesa0 libgl1 libgl1-mesa-dri libgbm1") from error
+            from bench.errors import RenderError
+
+            cause = str(error).strip().splitlines()
+            raise RenderError(
+                f"cannot create an EGL rendering context on {platform.node()} "
+                f"({type(error).__name__}: {cause[-1] if cause else ''}; "
+                f"PYOPENGL_PLATFORM={os.environ.get('PYOPENGL_PLATFORM')}); on Debian "
+                "install libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgbm1") from error
     # Framebuffers are resizable under EGL, so one context serves every size.
     _OFFSCREEN.viewport_width, _OFFSCREEN.viewport_height = width, height
     inner = getattr(_OFFSCREEN, "_renderer", None)

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
 # Set up everything on a fresh Debian 12 machine with Python 3.11, then run the main job.
+# Installs the test tools and Dask (the dask extra: bench run --executor dask, its tests).
 #   bash scripts/setup.sh            install + run the main job on built-in models
 #   bash scripts/setup.sh --no-run   install only (what CI uses)
 set -euo pipefail
@@ -19,7 +20,9 @@ fi
 PYTHON=${PYTHON:-$(command -v python3.11 || command -v python3)}
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
-.venv/bin/python -m pip install -q -e '.[test]'
+.venv/bin/python -m pip install -q -e '.[test,dask]'
+# Compile the numba kernels once (cached on disk), so no run or test pays for it.
+.venv/bin/bench warmup
 
 if [ "${1:-}" != "--no-run" ]; then
     # The main job: every available method on the bunny and the textured torus at 2 % and

@@ -25,11 +25,30 @@ FAN_FACES = np.array([[4, RING[i], RING[(i + 1) % 8]] for i in range(8)], np.int
 
 
 def fan_log(mesh):
-    """The engine's log of that collapse (it names welded vertices)."""
+    """The engine's log of that collapse (it names welded vertices; wedges are render
+    vertices, here one per vertex: 4's wedge merges into 1's, which is the merged
+    vertex's only wedge)."""
     welded = mesh.welded.vertex_of
     removed_faces = [f for f in range(8) if 1 in FAN_FACES[f]]
     return {"removed": welded[[4]], "kept": welded[[1]],
-            "position": FAN_POSITIONS[[1]].copy(), "removed_faces": np.array([removed_faces])}
+            "position": FAN_POSITIONS[[1]].copy(), "removed_faces": np.array([removed_faces]),
+            "pair_start": np.array([0, 1]), "wedge_pairs": np.array([[4, 1]]),
+            "wedge_start": np.array([0, 1]), "wedges": np.array([1]),
+            "wedge_uv": np.zeros((1, 2))}
+
+
+def test_engine_logs_wedges_as_the_fan_by_hand():
+    """The engine's own log of the fan collapse has the hand-written wedge entries."""
+    mesh = Mesh(FAN_POSITIONS, FAN_FACES)
+    log = simplify_mesh(mesh, 6, Policy(placement="endpoints"), max_collapses=1).log
+    assert len(log["removed"]) == 1
+    u, v = int(log["removed"][0]), int(log["kept"][0])
+    assert list(log["pair_start"]) == [0, 1] and list(log["wedge_start"]) == [0, 1]
+    of = mesh.welded.vertex_of  # wedges are render vertices, one per welded vertex here
+    pairs, wedges = log["wedge_pairs"], log["wedges"]
+    assert pairs.shape == (1, 2)  # one or two removed faces, one distinct pair
+    assert of[pairs[0]].tolist() == [u, v]
+    assert of[wedges].tolist() == [v]
 
 
 def test_fan_by_hand():

@@ -288,23 +288,71 @@ def test_bound_stages_match_slow_twins(patches):
     for k in range(3):
         np.add.at(acc, welded_faces[:, k], cross[:mesh.n_faces])
     vertex_normals = acc / np.linalg.norm(acc, axis=1, keepdims=True)
+    center = np.empty((mt.n_nodes, 3))
+    radius = np.empty(mt.n_nodes)
+    sil = [None] * mt.n_nodes
+    sh = [None] * mt.n_nodes  # None: no originals, no cone of its own
     for i in range(mt.n_nodes):
         own = np.concatenate([mt.node_removed(i), mt.node_created(i)])
         original = fp[fp_start[i]:fp_start[i + 1]]
         corners = P[T[np.concatenate([original, own])]].reshape(-1, 3)
         lo, hi = corners.min(axis=0), corners.max(axis=0)
-        np.testing.assert_array_equal(b.center[i], 0.5 * (lo + hi))
-        r = np.sqrt(((corners - b.center[i]) ** 2).sum(axis=1).max())
-        assert b.radius[i] == pytest.approx(r, rel=1e-12)
+        center[i] = 0.5 * (lo + hi)
+        radius[i] = np.sqrt(((corners - center[i]) ** 2).sum(axis=1).max())
         # silhouette: area-weighted normals of the originals and of its own triangles
-        axis, angle = _cone_twin(0.5 * cross[np.concatenate([original, own])])
-        np.testing.assert_allclose(b.silhouette_axis[i], axis, atol=1e-9)
-        assert b.silhouette_angle[i] == pytest.approx(angle, abs=1e-7)
+        sil[i] = _cone_twin(0.5 * cross[np.concatenate([original, own])])
         # shading: the original's vertex normals at the originals' corners
         if len(original):
-            axis, angle = _cone_twin(vertex_normals[welded_faces[original].reshape(-1)])
-            np.testing.assert_allclose(b.shading_axis[i], axis, atol=1e-9)
-            assert b.shading_angle[i] == pytest.approx(angle, abs=1e-7)
+            sh[i] = _cone_twin(vertex_normals[welded_faces[original].reshape(-1)])
+    # nested up the MT, children first: each child's sphere and cones merged in turn
+    for i in range(mt.n_nodes):
+        for ch in mt.node_children(i):
+            center[i], radius[i] = _merge_sphere_twin(center[i], radius[i], center[ch],
+                                                      radius[ch])
+            sil[i] = _merge_cone_twin(*sil[i], *sil[ch])
+            sh[i] = sh[ch] if sh[i] is None else _merge_cone_twin(*sh[i], *sh[ch])
+    np.testing.assert_allclose(b.center, center, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b.radius, radius, rtol=1e-12)
+    for cones, axes, angles in ((sil, b.silhouette_axis, b.silhouette_angle),
+                                (sh, b.shading_axis, b.shading_angle)):
+        np.testing.assert_allclose(angles, [a for _, a in cones], atol=1e-7)
+        wide = angles >= math.pi  # every direction: the axis means nothing
+        np.testing.assert_allclose(axes[~wide], np.array([x for x, _ in cones])[~wide],
+                                   atol=1e-7)
+
+
+def _merge_sphere_twin(c1, r1, c2, r2):
+    """The smallest sphere enclosing two spheres."""
+    d = np.linalg.norm(c2 - c1)
+    if d + r2 <= r1:
+        return c1, r1
+    if d + r1 <= r2:
+        return c2, r2
+    r = 0.5 * (d + r1 + r2)
+    return c1 + (r - r1) / d * (c2 - c1), r
+
+
+def _merge_cone_twin(a1, t1, a2, t2):
+    """The smallest cone containing two cones: a1 turned towards a2 (Rodrigues'
+    rotation about a1 x a2) by the excess of the merged half-angle over t1; axes too
+    close to (anti)parallel to turn keep a1 and widen it to g + t2 (or to pi)."""
+    if t1 >= math.pi or t2 >= math.pi:
+        return (a1 if t1 >= math.pi else a2), math.pi
+    k = np.cross(a1, a2)
+    g = math.atan2(np.linalg.norm(k), a1 @ a2)
+    if g + t2 <= t1:
+        return a1, t1
+    if g + t1 <= t2:
+        return a2, t2
+    t = 0.5 * (g + t1 + t2)
+    if t >= math.pi:
+        return a1, math.pi
+    if np.linalg.norm(k) < 1e-9:
+        return a1, (min(math.pi, g + t2) if g < 0.5 * math.pi else math.pi)
+    k /= np.linalg.norm(k)
+    phi = t - t1
+    return (a1 * math.cos(phi) + np.cross(k, a1) * math.sin(phi)
+            + k * (k @ a1) * (1 - math.cos(phi))), t
 
 
 # -- texture deviation against the parametric distance ---------------------------------------
@@ -512,6 +560,51 @@ def test_method_returns_a_view_independent_cut_and_per_view_cuts():
     assert len(result.view_cuts.stats["refine_ms"]) == 24
 
 
+def test_mt_cache_gives_the_built_mt_and_bounds_back(tmp_path):
+    """Built, then from memory, then (in a 'new worker') from disk: the same arrays,
+    and the same cuts for every budget and error."""
+    import dataclasses
+
+    from methods.mt import cache
+
+    mesh = make_torus(16, 8, texture_size=64)
+    built, b_bounds, source, seconds = cache.mt_and_bounds(mesh, 1.0, "v", tmp_path)
+    assert source == "built" and seconds > 0 and len(list(tmp_path.glob("mt-*.npz"))) == 1
+    assert cache.mt_and_bounds(mesh, 1.0, "v", tmp_path)[2] == "memory"
+    cache._LAST.clear()  # a new worker process
+    mt, bounds, source, seconds = cache.mt_and_bounds(mesh, 1.0, "v", tmp_path)
+    assert source == "disk" and seconds == 0.0
+    for a, b in ((built, mt), (b_bounds, bounds)):
+        for f in dataclasses.fields(a):
+            x, y = getattr(a, f.name), getattr(b, f.name)
+            if isinstance(x, np.ndarray):
+                assert x.dtype == y.dtype and np.array_equal(x, y), f.name
+            elif f.name != "stats":
+                assert x == y or x is y, f.name
+    assert mt.texture is mesh.texture
+    # another parameter or version is another MT
+    cache._LAST.clear()
+    assert cache.mt_and_bounds(mesh, 0.5, "v", tmp_path)[2] == "built"
+    assert cache.mt_and_bounds(mesh, 1.0, "w", tmp_path)[2] == "built"
+    assert len(list(tmp_path.glob("mt-*.npz"))) == 3
+
+
+def test_method_gives_the_same_result_with_a_cached_mt(tmp_path):
+    from methods.mt import cache
+
+    mesh = make_torus(16, 8, texture_size=64)
+    cache._LAST.clear()
+    fresh = PerceptualMT().simplify(mesh, 60)
+    cache._LAST.clear()
+    PerceptualMT().simplify(mesh, 80, {"cache_dir": str(tmp_path)})
+    cache._LAST.clear()
+    again = PerceptualMT().simplify(mesh, 60, {"cache_dir": str(tmp_path)})
+    assert again.stats["mt_cache"] == "disk" and fresh.stats["mt_cache"] == "built"
+    assert np.array_equal(fresh.mesh.positions, again.mesh.positions)
+    assert np.array_equal(fresh.mesh.faces, again.mesh.faces)
+    assert np.array_equal(fresh.mesh.uv, again.mesh.uv)
+
+
 def test_method_params_are_checked():
     with pytest.raises(ParamError, match="error"):
         parse_params(PerceptualMT.Params, ["error=psnr"])
@@ -539,7 +632,7 @@ def test_runner_images_each_view_with_its_own_cut(tmp_path, monkeypatch):
     path = tmp_path / "torus.obj"
     save_mesh(make_torus(16, 8, texture_size=64), path)
     job = Job(str(path), "perceptual-mt", 60, {}, Protocol(shading="gouraud", specular=True))
-    record = run_job(job, tmp_path)
+    record = run_job(job, tmp_path / "cache").record
     assert record["status"] == "ok", record["error"]
     assert len(record["stats"]["refine_ms"]) == 24
     assert len(record["per_view"]["d_rms"]) == 24

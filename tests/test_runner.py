@@ -22,6 +22,7 @@ import pytest
 from bench.harness.results import CSV_COLUMNS
 from bench.io.meshio import save_mesh
 from conftest import icosphere
+from metrics.protocol import PROTOCOL_VERSION
 
 pytestmark = pytest.mark.slow
 
@@ -76,7 +77,7 @@ def test_record_contents(run):
     root, _ = run
     r = _records(root / "out")[("qslim", 100)]
     assert r["schema"] == 1
-    assert r["job"]["protocol"]["version"] == "1"
+    assert r["job"]["protocol"]["version"] == PROTOCOL_VERSION
     assert r["method"]["version"] == "1"
     assert len(r["model"]["hash"]) == 40
     assert abs(r["metrics"]["faces"] - 100) <= 2
@@ -85,6 +86,7 @@ def test_record_contents(run):
     assert np.isclose(sum(r["silhouette_histogram"]), 1.0)
     assert r["environment"]["versions"]["pymeshlab"]
     assert r["stats"]["tri_per_s"] > 0
+    assert r["stats"]["compile_seconds"] >= 0  # the warm-up, apart from wall_seconds
 
 
 def test_results_csv_and_report(run):

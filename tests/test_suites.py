@@ -16,7 +16,7 @@ from bench.harness.check import compare, make_baseline
 from bench.harness.results import CSV_COLUMNS, records_table, shading_label
 from bench.harness.runner import plan
 from bench.harness.suites import SUITES, Suite, evaluation_protocols, get_suite
-from metrics.protocol import Protocol
+from metrics.protocol import PROTOCOL_VERSION, Protocol
 
 FLAT, GOURAUD_SPEC = Protocol("flat"), Protocol("gouraud", specular=True)
 
@@ -37,8 +37,8 @@ def test_plan_runs_every_job_under_every_protocol():
     assert [(j.label, j.target_faces, j.protocol) for j in jobs[:4]] == [
         ("m", 10, FLAT), ("m", 10, GOURAUD_SPEC), ("m", 5, FLAT), ("m", 5, GOURAUD_SPEC)]
     assert len({j.key for j in jobs}) == 8  # one record file each
-    assert jobs[0].key == "a__m__10__flat-p1"
-    assert jobs[1].key == "a__m__10__gouraud-spec-p1"
+    assert jobs[0].key == f"a__m__10__flat-p{PROTOCOL_VERSION}"
+    assert jobs[1].key == f"a__m__10__gouraud-spec-p{PROTOCOL_VERSION}"
 
 
 def test_plan_drops_duplicate_jobs_and_needs_a_protocol():
@@ -116,7 +116,7 @@ def test_lt2000_suites_name_their_experiments():
 @pytest.mark.parametrize("name", sorted(SUITES))
 def test_suite_variants_are_valid_method_parameters(name):
     """What ``bench run --suite`` checks before any work starts, for every suite."""
-    from bench.harness.runner import _fmt
+    from bench.harness.jobs import _fmt
     from bench.method import parse_params
     from bench.registry import registry
 
@@ -133,7 +133,7 @@ def test_lt2000_shading_plans_each_variant_under_both_shadings():
                 evaluation_protocols(suite))
     assert len(jobs) == 3 * 2
     assert sorted(j.key for j in jobs) == sorted(
-        f"bunny__{label}__1332__{shading}-p1"
+        f"bunny__{label}__1332__{shading}-p{PROTOCOL_VERSION}"
         for label in ("image-driven-shading=flat", "image-driven-shading=gouraud,specular=true",
                       "qslim")
         for shading in ("flat", "gouraud-spec"))

@@ -52,6 +52,9 @@ def _row(kind: str, entry) -> dict:
             needs = sorted(set(getattr(obj, "needs", ())) - {"meshes"}) or ["meshes"]
             row.update(unit=obj.unit, direction=obj.direction, needs=",".join(needs),
                        detail=obj.summary)
+        elif getattr(obj, "derived_faces", None):  # listing it must not build it
+            row.update(faces=obj.derived_faces, texture="", detail=f"{obj.description}; "
+                       "made by simplification when first used")
         else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

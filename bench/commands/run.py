@@ -9,7 +9,7 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.harness.runner import execute, plan
+from bench.harness.runner import EXECUTORS, execute, plan, remaining
 from bench.harness.suites import evaluation_protocols, get_suite
 from bench.method import parse_params, resolve_target
 from bench.models import resolve_model
@@ -36,7 +36,14 @@ def add_parser(sub, name: str) -> None:
                    "evaluation protocols; the options above override them)")
     p.add_argument("--out", help="run directory (default: reports/run-YYYYmmdd-HHMMSS)")
     p.add_argument("--jobs", "-j", type=int, default=os.cpu_count() or 1,
-                   help="worker processes (default: CPU count)")
+                   help="worker processes, here or in the LocalCluster of --executor dask "
+                   "without --scheduler (default: CPU count)")
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="what runs the jobs: a pool of processes here (local, the default) "
+                   "or a Dask cluster (dask; README, 'Running on a cluster')")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="a running Dask scheduler, e.g. tcp://HOST:8786 (with --executor "
+                   "dask; without it a LocalCluster of --jobs workers is started)")
     p.add_argument("--resume", action="store_true", help="skip jobs whose record exists in DIR")
     p.add_argument("--timeout", type=float, default=900.0, help="seconds per job (default 900)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML report")
@@ -73,6 +80,11 @@ def parse_variants(text: str | None) -> list[tuple[str, dict]]:
 
 
 def run(args) -> int:
+    if args.scheduler and args.executor != "dask":
+        raise InputError("--scheduler is the address of a Dask scheduler: it needs "
+                         "--executor dask")
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     suite = get_suite(args.suite) if args.suite else None
     models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
     methods = registry("method")
@@ -81,11 +93,13 @@ def run(args) -> int:
     elif suite and suite.variants is not None:
         variants = list(suite.variants)
     else:
-        variants = [(e.name, {}) for e in methods if e.available and not e.load().view_dependent]
+        variants = [(e.name, {}) for e in methods if e.available]
     for name, params in variants:  # fail on typos before any work starts
         parse_params(methods.load(name).Params, [f"{k}={v}" for k, v in params.items()])
 
     meshes = {m: resolve_model(m) for m in models}
+    if not args.methods and not (suite and suite.variants is not None):
+        print(_default_methods_line(methods, [n for n, _ in variants], meshes), file=sys.stderr)
     budgets = {}
     for m, mesh in meshes.items():
         if args.faces:
@@ -101,14 +115,30 @@ def run(args) -> int:
     out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
     jobs = plan(models, variants, budgets, protocols)
     if args.resume:
-        jobs = [j for j in jobs if not (out / "records" / f"{j.key}.json").exists()]
+        jobs = remaining(jobs, out)
     out.mkdir(parents=True, exist_ok=True)
     shadings = " x " + "/".join(
         p.shading + ("+specular" if p.specular else "") for p in protocols) + " shading"
+    where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
+             f"with {args.jobs} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
+                                            else ""))
     print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets"
-          f"{shadings}) with {args.jobs} workers -> {out}", file=sys.stderr)
-    execute(jobs, out, workers=args.jobs, timeout=args.timeout)
+          f"{shadings}) {where} -> {out}", file=sys.stderr)
+    execute(jobs, out, workers=args.jobs, timeout=args.timeout, executor=args.executor,
+            scheduler=args.scheduler)
     return finish(out, build_report=not args.no_report)
+
+
+def _default_methods_line(methods, names: list[str], meshes: dict) -> str:
+    """The first line of a run with no ``--methods``: every available method, and which
+    were left out (unavailable) or will be skipped on some models (they need UVs)."""
+    notes = [f"{e.name} (unavailable: {e.problem})" for e in methods if not e.available]
+    no_uv = [m for m, mesh in meshes.items() if mesh.uv is None]
+    for name in names:
+        if methods.load(name).needs_uv and no_uv:
+            notes.append(f"{name} on {', '.join(no_uv)} (needs texture coordinates)")
+    return (f"bench: every available method ({len(names)})"
+            + (f"; skipped: {'; '.join(notes)}" if notes else ""))
 
 
 def finish(out: Path, build_report: bool = True) -> int:

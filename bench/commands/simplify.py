@@ -1,36 +1,89 @@
-"""``bench simplify IN_OR_MODEL OUT --method NAME (--faces N | --ratio R)``: simplify one
-mesh and write the result (with its texture) to OUT; the format follows OUT's extension."""
+"""``bench simplify IN_OR_MODEL OUT --method NAME (--faces N[,N2,...] | --ratio R[,R2,...])``:
+simplify one mesh and write the result (with its texture) to OUT; the format follows
+OUT's extension.
+
+With several levels (``--faces 5000,2500,600`` or ``--ratios 0.1,0.05``) it writes an
+LOD chain. LOD0 is the input itself (the full-detail mesh, as engines count) and LOD1,
+LOD2, ... are the levels in the order given, which must have strictly decreasing face
+counts, below the input's. A .glb or .gltf OUT holds every level as one mesh (and
+node) named LOD0, LOD1, ...; in any other format each level is a file named after
+OUT: x.obj -> x_LOD0.obj, x_LOD1.obj, ... (with x_LOD1.mtl and x_LOD1.png when
+textured; x.obj itself is not written). Every level is simplified from the input, or
+with --chain from the previous level. x.obj.lods.json (OUT + .lods.json) lists per
+level the target, the faces obtained, the level it was made from, the method with its
+version and parameters, its stop reason, its own error where it reports one
+(meshoptimizer's result_error, against the level's source), the seconds and, with
+--evaluate, the protocol's figures (d_rms, FLIP, Hausdorff, ...) against the input.
+Existing files are overwritten, as for a single level, which writes OUT alone.
+"""
 
 from __future__ import annotations
 
+import argparse
 import sys
+import time
 from pathlib import Path
 
-from bench.io.meshio import check_output_path, save_mesh
+from bench.errors import InputError
+from bench.io.meshio import SCENE_FORMATS, check_output_path, lod_path, save_lods, save_mesh
 from bench.method import parse_params, resolve_target, run_method
 from bench.models import resolve_model
 from bench.registry import registry
 
 
 def add_parser(sub, name: str) -> None:
-    p = sub.add_parser(name, help="simplify one mesh and write the result", description=__doc__)
+    p = sub.add_parser(name, help="simplify one mesh and write the result (or an LOD chain)",
+                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", metavar="IN_OR_MODEL", help="a mesh file or a model name (bench list models)")
     p.add_argument("output", metavar="OUT", help="output file (.obj, .ply, .glb, .gltf, .off, .stl)")
     p.add_argument("--method", "-m", required=True, help="method name (bench list methods)")
     target = p.add_mutually_exclusive_group(required=True)
-    target.add_argument("--faces", "-f", type=int, help="target triangle count")
-    target.add_argument("--ratio", "-r", type=float, help="target as a fraction of the input's faces")
+    target.add_argument("--faces", "-f", metavar="N[,N2,...]",
+                        help="target triangle count; several, comma-separated and decreasing, "
+                        "write an LOD chain")
+    target.add_argument("--ratios", "--ratio", "-r", dest="ratios", metavar="R[,R2,...]",
+                        help="target as a fraction in (0, 1] of the input's faces; several, "
+                        "comma-separated and decreasing, write an LOD chain")
+    p.add_argument("--chain", action="store_true",
+                   help="LOD chain: simplify each level from the previous one (default: "
+                   "each from the input)")
+    p.add_argument("--evaluate", action="store_true",
+                   help="LOD chain: evaluate each level against the input under the protocol "
+                   "(d_rms, FLIP, Hausdorff, ...) into OUT.lods.json; renders 24 views per "
+                   "level, slow on a CPU-only machine")
     p.add_argument("--param", "-p", action="append", default=[], metavar="KEY=VALUE",
                    help="method parameter (repeatable)")
     p.set_defaults(run=run)
+
+
+def parse_levels(text: str, flag: str, kind: type) -> list:
+    """``"5000,2500"`` -> ``[5000, 2500]``; InputError naming ``flag`` if malformed."""
+    items = [t.strip() for t in text.split(",")]
+    try:
+        if not all(items):
+            raise ValueError
+        return [kind(t) for t in items]
+    except ValueError:
+        example = "5000,2500,600" if kind is int else "0.1,0.05,0.01"
+        raise InputError(f"{flag} {text!r}: expected {'a face count' if kind is int else 'a ratio'}"
+                         f" or a comma-separated list such as {example}") from None
 
 
 def run(args) -> int:
     method_cls = registry("method").load(args.method)
     check_output_path(args.output)  # fail before the work, not after
     params = parse_params(method_cls.Params, args.param)
+    faces = parse_levels(args.faces, "--faces", int) if args.faces is not None else None
+    ratios = parse_levels(args.ratios, "--ratios", float) if args.ratios is not None else None
+    if len(faces or ratios) > 1:
+        return run_chain(args, method_cls, params, faces, ratios)
+    if args.chain or args.evaluate:
+        raise InputError(f"--{'chain' if args.chain else 'evaluate'} applies to LOD chains: give "
+                         "two or more levels (--faces N1,N2,... or --ratios r1,r2,...)"
+                         + ("" if args.chain else "; `bench run` evaluates a single result"))
     mesh = resolve_model(args.input)
-    target = resolve_target(mesh.n_faces, args.faces, args.ratio)
+    target = resolve_target(mesh.n_faces, faces[0] if faces else None,
+                            ratios[0] if ratios else None)
     result = run_method(method_cls(params), mesh, target)
     written = save_mesh(result.mesh, args.output)
     seconds = result.stats.get("wall_seconds", 0.0)
@@ -39,4 +92,56 @@ def run(args) -> int:
           f"wrote {', '.join(str(Path(w)) for w in written)}")
     if result.stop_reason:
         print(f"bench: note: stopped short: {result.stop_reason}", file=sys.stderr)
+    return 0
+
+
+def run_chain(args, method_cls, params, faces, ratios) -> int:
+    """Write the LOD chain of ``bench simplify`` with several levels (module docstring)."""
+    from bench.harness.lods import build_levels, level_name, level_targets, sidecar, sidecar_path
+    from bench.harness.results import write_record
+    from metrics.protocol import Protocol
+
+    out = Path(args.output)
+    if out.suffix.lower() not in SCENE_FORMATS:  # every level's file, before the work
+        for path in [lod_path(out, level_name(i)) for i in range(len(faces or ratios) + 1)]:
+            check_output_path(path)
+    if sidecar_path(out).is_dir():
+        raise InputError(f"{sidecar_path(out)}: is a directory; the chain's sidecar goes there")
+    mesh = resolve_model(args.input)
+    targets = level_targets(mesh.n_faces, faces, ratios)
+    method = method_cls(params)
+    protocol = Protocol() if args.evaluate else None
+
+    def report(level) -> None:
+        from tqdm import tqdm
+
+        r = level.result
+        source = f" (from {level.source})" if args.chain else ""
+        line = (f"{mesh.name} {level.name}{source}: {level.source_faces} -> {r.mesh.n_faces} "
+                f"faces ({r.mesh.n_vertices} vertices) with {method_cls.name} in "
+                f"{r.stats.get('wall_seconds', 0.0):.3f} s")
+        if level.evaluation is not None:
+            m = level.evaluation.metrics
+            line += "; " + ", ".join(f"{key} {m[key]:.4g}" for key in
+                                     ("d_rms", "flip", "hausdorff_mean", "hausdorff_max")
+                                     if m.get(key) is not None)
+        tqdm.write(line, file=sys.stdout)
+
+    start = time.perf_counter()
+    levels = build_levels(method, mesh, targets, chain=args.chain, protocol=protocol,
+                          progress=True, on_level=report)
+    seconds = time.perf_counter() - start
+    files = save_lods([(level_name(0), mesh)] + [(lv.name, lv.result.mesh) for lv in levels],
+                      out)
+    record = sidecar(mesh, method, levels, args.chain, files, protocol, seconds=seconds,
+                     source=args.input)
+    side = write_record(sidecar_path(out), record, sort_keys=False)
+    written = []
+    for paths in files.values():
+        written.extend(str(p) for p in paths if str(p) not in written)
+    print(f"wrote {', '.join(written + [str(side)])}")
+    for level in levels:
+        if level.result.stop_reason:
+            print(f"bench: note: {level.name} stopped short: {level.result.stop_reason}",
+                  file=sys.stderr)
     return 0

@@ -222,7 +222,7 @@ def _difference_uri(original: Path, simplified: Path) -> str | None:
 
 
 def _sheets(run_dir: Path, records: list[dict]) -> str:
-    from bench.harness.runner import SHEET_VIEWS, Job
+    from bench.harness.jobs import SHEET_VIEWS, Job
     from metrics.protocol import Protocol
 
     several = len(_shadings(records)) > 1

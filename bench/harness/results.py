@@ -9,11 +9,16 @@ Schema (``schema`` = :data:`SCHEMA_VERSION`)::
      "metrics": {...}, "per_view": {...}, "silhouette_histogram": [...],
      "metric_errors": {name: error} (only when a metric raised; its value is missing),
      "stats": {...}, "seconds": {...}, "stop_reason": str | null,
-     "environment": {"versions", "git_commit", "machine"}, "created": ISO time}
+     "environment": {"versions", "git_commit", "machine",
+                     "worker": {"executor": "local" | "dask", "name", "host",
+                                "address" and "attempts" (Dask)}},
+     "created": ISO time}
 
 Records are written atomically (temporary file + rename), so an interrupted run leaves
-only complete records and ``--resume`` can trust what it finds. A record of a newer
-schema is refused; older ones would be migrated by :func:`load_record`.
+only complete records and ``--resume`` can trust what it finds. A job's images are
+written (atomically too) before its record, so a record also means its images exist.
+A record of a newer schema is refused; older ones would be migrated by
+:func:`load_record`.
 """
 
 from __future__ import annotations
@@ -25,8 +30,8 @@ from pathlib import Path
 
 from bench.errors import InputError
 
-__all__ = ["SCHEMA_VERSION", "CSV_COLUMNS", "shading_label", "write_record", "load_record",
-           "load_records", "metric_columns", "records_table", "write_table"]
+__all__ = ["CSV_COLUMNS", "SCHEMA_VERSION", "load_record", "load_records", "metric_columns",
+           "records_table", "shading_label", "write_file", "write_record", "write_table"]
 
 SCHEMA_VERSION = 1
 
@@ -46,12 +51,27 @@ def shading_label(protocol: dict) -> str:
     return protocol["shading"] + ("-spec" if protocol.get("specular") else "")
 
 
-def write_record(path: Path, record: dict) -> Path:
-    """Write ``record`` as JSON to ``path`` atomically."""
+def write_record(path: Path, record: dict, sort_keys: bool = True) -> Path:
+    """Write ``record`` as JSON to ``path`` atomically (NumPy values as plain numbers).
+
+    Keys are sorted unless ``sort_keys`` is false, for files read by people in the
+    order they were built (the LOD sidecar of ``bench simplify``).
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     with os.fdopen(fd, "w") as f:
-        json.dump(record, f, indent=1, sort_keys=True, default=_jsonable)
+        json.dump(record, f, indent=1, sort_keys=sort_keys, default=_jsonable)
+    os.replace(tmp, path)
+    return path
+
+
+def write_file(path: Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder + rename),
+    so a reader never sees half a file, whoever else writes the same path."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "wb") as f:
+        f.write(data)
     os.replace(tmp, path)
     return path
 

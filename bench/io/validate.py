@@ -14,6 +14,9 @@ non-triangle faces         triangulated by the loader, warning with count
 degenerate faces           dropped, warning with count
 missing texture image      warning, mesh loaded untextured (UVs kept)
 non-manifold edges         allowed, warning with count
+several materials          one texture atlas (:mod:`bench.io.atlas`)
+a material's texture gone  warning, that material uses its colour
+repeat too large to pack   error naming the material
 =========================  ===============================================
 """
 

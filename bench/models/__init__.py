@@ -17,9 +17,22 @@ from bench.errors import InputError, UnknownNameError
 from bench.mesh import Mesh
 from bench.registry import suggest
 
-__all__ = ["ModelSpec", "BUNNY", "BUNNY_TEXTURED", "TORUS", "INTERIOR", "TORUS_PUZZLE",
-           "CRATE", "BARREL", "BUNNY_TEXTURED_815", "BUNNY_TEXTURED_4698", "TORUS_13810",
-           "resolve_model", "pymeshlab_sample"]
+__all__ = [
+    "BARREL",
+    "BUNNY",
+    "BUNNY_TEXTURED",
+    "BUNNY_TEXTURED_815",
+    "BUNNY_TEXTURED_4698",
+    "CRATE",
+    "INTERIOR",
+    "TORUS",
+    "TORUS_13810",
+    "TORUS_PUZZLE",
+    "TWO_MATERIALS",
+    "ModelSpec",
+    "pymeshlab_sample",
+    "resolve_model",
+]
 
 
 @dataclass(frozen=True)
@@ -31,6 +44,9 @@ class ModelSpec:
     source: str
     loader: Callable[[], Mesh]
     requires: dict = field(default_factory=dict)
+    #: For a model made by simplifying another one: the faces it is made with. Such a
+    #: model costs a simplification to load, so listings show it without building it.
+    derived_faces: int | None = None
 
     def load(self) -> Mesh:
         mesh = self.loader()
@@ -106,6 +122,12 @@ def _barrel() -> Mesh:
     return make_barrel()
 
 
+def _two_materials() -> Mesh:
+    from bench.models.materials import make_two_materials
+
+    return make_two_materials()
+
+
 def _predecimated(base: ModelSpec, faces: int) -> Callable[[], Mesh]:
     """``base`` simplified to ``faces`` by our Garland-Heckbert 1998 engine (texture
     quadrics, seams kept closed, every UV chart kept): a stand-in for the sizes of
@@ -126,19 +148,25 @@ BARREL = ModelSpec(
     "barrel", "two materials in one atlas: a stave body and two metal lids whose rims "
     "share positions, not vertices, with the body (sub-meshes meeting along a seam)",
     "procedural (bench.models.gamemodels, seed 2008)", _barrel)
+TWO_MATERIALS = ModelSpec(
+    "two-materials", "a sphere whose halves are two materials with their own textures "
+    "(bricks north, waves south), packed into one atlas as the loaders pack a "
+    "multi-material OBJ or glTF; metadata['atlas'] lists the materials",
+    "procedural (bench.models.materials)", _two_materials)
 BUNNY_TEXTURED_815 = ModelSpec(
     "bunny-textured-815", "bunny-textured pre-decimated to 815 faces (Table 1 of "
     "González et al. 2008: 815 -> 100)", "bunny-textured, quadric engine (texture "
-    "quadrics)", _predecimated(BUNNY_TEXTURED, 815), requires={"pymeshlab": "pymeshlab>=2023.12"})
+    "quadrics)", _predecimated(BUNNY_TEXTURED, 815), requires={"pymeshlab": "pymeshlab>=2023.12"},
+    derived_faces=815)
 BUNNY_TEXTURED_4698 = ModelSpec(
     "bunny-textured-4698", "bunny-textured pre-decimated to 4,698 faces (Table 1 of "
     "González et al. 2008: 4,698 -> 500)", "bunny-textured, quadric engine (texture "
     "quadrics)", _predecimated(BUNNY_TEXTURED, 4698),
-    requires={"pymeshlab": "pymeshlab>=2023.12"})
+    requires={"pymeshlab": "pymeshlab>=2023.12"}, derived_faces=4698)
 TORUS_13810 = ModelSpec(
     "torus-13810", "the textured torus pre-decimated to 13,810 faces (Table 1 of "
     "González et al. 2008: 13,810 -> 1,000)", "torus, quadric engine (texture quadrics)",
-    _predecimated(TORUS, 13810))
+    _predecimated(TORUS, 13810), derived_faces=13810)
 
 
 def _looks_like_path(word: str) -> bool:

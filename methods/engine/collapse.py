@@ -21,9 +21,11 @@ from methods.engine.wedges import (
 
 @njit(cache=True)
 def _collapse(u, v, p, mesh, rules, terms, scratch, log_changed, n_changed, kinds):
-    """Merge u into v at p. Returns (faces removed, changed count) and fills
-    ``scratch.efaces`` with the removed faces; the faces whose corner moved are appended
-    to ``log_changed`` from ``n_changed``. ``kinds`` counts twin and stranded-wedge
+    """Merge u into v at p. Returns (faces removed, changed count, wedge pairs, merged
+    wedges) and fills ``scratch.efaces`` with the removed faces, ``scratch.wmap_from``/
+    ``wmap_to`` with the wedge pairs and ``scratch.wq.targets`` with the merged vertex's
+    distinct wedges; the faces whose corner moved are appended to ``log_changed`` from
+    ``n_changed``. ``kinds`` counts twin and stranded-wedge
     collapses (:func:`_count_kinds`); ``rules.uv_fix`` applies :func:`_uv_correction`
     last."""
     P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex = (
@@ -35,6 +37,8 @@ def _collapse(u, v, p, mesh, rules, terms, scratch, log_changed, n_changed, kind
     _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, kinds)
     # New texture coordinates of the merged wedges (before the topology changes).
     _merge_uvs(u, v, p, npairs, mesh, rules, terms, scratch)
+    nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs,
+                        scratch.wq.targets)
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     for i in range(k):
         falive[efaces[i]] = False
@@ -68,7 +72,7 @@ def _collapse(u, v, p, mesh, rules, terms, scratch, log_changed, n_changed, kind
     for i in range(QUADRIC_SIZE):
         Q[v, i] += Q[u, i]
     _compact(v, vhead, cnext, falive)
-    return k, n_changed
+    return k, n_changed, npairs, nt
 
 
 @njit(cache=True)

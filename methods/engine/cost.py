@@ -12,6 +12,11 @@ from numba import njit
 from methods.engine.canny import _walk
 from methods.engine.lindstrom_turk import lt_cost, lt_placement
 from methods.engine.policy import (
+    BOUNDARY_RULE,
+    END_FREE,
+    END_KEEP_FIRST,
+    END_KEEP_SECOND,
+    END_SEAM_EDGE,
     LT_ALPHA_DEG,
     LT_BOUNDARY_WEIGHT,
     LT_SHAPE_WEIGHT,
@@ -19,6 +24,11 @@ from methods.engine.policy import (
     PLACE_ENDPOINTS,
     PLACE_MEMORYLESS,
     PLACE_MIDPOINT,
+    SEAM_RULE,
+    VERTEX_BOUNDARY,
+    VERTEX_INTERIOR,
+    VERTEX_ORDINARY,
+    VERTEX_SEAM,
 )
 from methods.engine.quadrics import _add_reduced, _group_quadric, _optimal_point, quadric_error
 from methods.engine.state import QUADRIC_SIZE
@@ -97,36 +107,31 @@ def _edge_quadric(a, b, mesh, scratch):
 @njit(cache=True)
 def _forced_end(a, b, mesh, rules, scratch):
     """The vertex the rules keep at its own position (-1: none; -2: the collapse is
-    forbidden).
-
-    Seam rule (``rules.seam_rule``), as vertex kinds: a seam vertex (two or more wedges)
-    may only move along its seam. So an edge between a seam vertex and an ordinary one
-    is a half-edge collapse onto the seam vertex, which stays where it is; an edge
-    between two seam vertices must itself be a seam edge (else it would cut a UV chart
-    in two), and may then be placed freely.
-
-    Boundary rule (``rules.boundary_rule``): likewise a boundary vertex is never merged
-    into an interior one (the hole would grow into the surface); an edge from a boundary
-    vertex to an interior one keeps the boundary vertex where it is.
-    """
+    forbidden), from the ends' vertex kinds and the rule tables of
+    :mod:`methods.engine.policy` (``SEAM_RULE``, ``BOUNDARY_RULE``; the rules in prose
+    are there)."""
     F, FW, vhead, cnext, falive = mesh.F, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive
-    vboundary = mesh.vboundary
     forced = -1
     if rules.seam_rule:
-        sa = _is_seam_vertex(a, FW, vhead, cnext, falive)
-        sb = _is_seam_vertex(b, FW, vhead, cnext, falive)
-        if sa and sb:
+        ka = VERTEX_SEAM if _is_seam_vertex(a, FW, vhead, cnext, falive) else VERTEX_ORDINARY
+        kb = VERTEX_SEAM if _is_seam_vertex(b, FW, vhead, cnext, falive) else VERTEX_ORDINARY
+        verdict = SEAM_RULE[ka, kb]
+        if verdict == END_SEAM_EDGE:
             if not _is_seam_edge(a, b, F, FW, vhead, cnext, falive, scratch.efaces):
                 return -2
-        elif sa:
+        elif verdict == END_KEEP_FIRST:
             forced = a
-        elif sb:
+        elif verdict == END_KEEP_SECOND:
             forced = b
-    if rules.boundary_rule and vboundary[a] != vboundary[b]:  # the boundary end stays
-        bkeep = a if vboundary[a] else b
-        if forced != -1 and forced != bkeep:  # the seam rule wants the other end kept
-            return -2
-        forced = bkeep
+    if rules.boundary_rule:
+        ka = VERTEX_BOUNDARY if mesh.vboundary[a] else VERTEX_INTERIOR
+        kb = VERTEX_BOUNDARY if mesh.vboundary[b] else VERTEX_INTERIOR
+        verdict = BOUNDARY_RULE[ka, kb]
+        if verdict != END_FREE:
+            keep = a if verdict == END_KEEP_FIRST else b
+            if forced != -1 and forced != keep:  # the seam rule keeps the other end
+                return -2
+            forced = keep
     return forced
 
 

@@ -31,7 +31,12 @@ from methods.engine.state import (
     LOG_CHANGED_HEADROOM,
     LOG_CHANGED_MIN,
     LOG_COLLAPSES,
+    LOG_PAIRS,
+    LOG_WEDGES,
     MISMATCHES,
+    N_LOG_COUNTS,
+    WEDGE_PAIRS_CAP,
+    WEDGE_TARGETS_CAP,
     Blocked,
     Images,
     Log,
@@ -154,13 +159,27 @@ def _block(blocked, a, b):
 
 
 @njit(cache=True)
+def _doubled(a, used, need):
+    """``a`` itself when ``need`` more slots fit after ``used``; else a copy twice as
+    long (a log list grows, it never truncates)."""
+    if used + need <= a.shape[0]:
+        return a
+    b = np.empty((2 * a.shape[0] + need,) + a.shape[1:], a.dtype)
+    b[:used] = a[:used]
+    return b
+
+
+@njit(cache=True)
 def _log_collapse(log, u, v, fresh, p):
-    """Write collapse (u into v at p, cost ``fresh``) to the log, first making room for
-    its changed faces; returns the log (its changed list may have grown)."""
-    n, n_changed = log.count[LOG_COLLAPSES], log.count[LOG_CHANGED]
-    if n_changed + LOG_CHANGED_HEADROOM > log.changed.shape[0]:
-        log = Log(log.cost, log.removed, log.kept, log.pos, log.faces, log.start,
-                  np.concatenate((log.changed, np.empty_like(log.changed))), log.count)
+    """Write collapse (u into v at p, cost ``fresh``) to the log, first making room in
+    its lists for what one collapse can add; returns the log (its lists may have
+    grown)."""
+    n, count = log.count[LOG_COLLAPSES], log.count
+    log = Log(log.cost, log.removed, log.kept, log.pos, log.faces, log.start,
+              _doubled(log.changed, count[LOG_CHANGED], LOG_CHANGED_HEADROOM),
+              log.pair_start, _doubled(log.pairs, count[LOG_PAIRS], WEDGE_PAIRS_CAP),
+              log.wedge_start, _doubled(log.wedges, count[LOG_WEDGES], WEDGE_TARGETS_CAP),
+              _doubled(log.wedge_uv, count[LOG_WEDGES], WEDGE_TARGETS_CAP), count)
     log.cost[n] = fresh
     log.removed[n] = u
     log.kept[n] = v
@@ -169,17 +188,39 @@ def _log_collapse(log, u, v, fresh, p):
 
 
 @njit(cache=True)
+def _log_wedges(log, npairs, nt, mesh, rules, scratch):
+    """Append the collapse's distinct wedge pairs (``scratch.wmap_from``/``wmap_to``)
+    and the merged vertex's wedges (``scratch.wq.targets``) with their new UVs, so the
+    log alone says how every render vertex changed."""
+    n_p, n_w = log.count[LOG_PAIRS], log.count[LOG_WEDGES]
+    for i in range(npairs):  # distinct already (methods.engine.wedges._wedge_pairs)
+        log.pairs[n_p, 0] = scratch.wmap_from[i]
+        log.pairs[n_p, 1] = scratch.wmap_to[i]
+        n_p += 1
+    for i in range(nt):
+        w = scratch.wq.targets[i]
+        log.wedges[n_w] = w
+        log.wedge_uv[n_w, 0] = mesh.uv[w, 0] if rules.has_uv else 0.0
+        log.wedge_uv[n_w, 1] = mesh.uv[w, 1] if rules.has_uv else 0.0
+        n_w += 1
+    log.count[LOG_PAIRS] = n_p
+    log.count[LOG_WEDGES] = n_w
+
+
+@njit(cache=True)
 def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
     """Collapse u into v at ``scratch.p``: note whether v moves, collapse, log the
-    removed faces, and bring the images (or face ids) up to date. Returns (faces
-    removed, images) — the tile index is rebuilt when a commit overflows it."""
+    removed faces and merged wedges, and bring the images (or face ids) up to date.
+    Returns (faces removed, images) — the tile index is rebuilt when a commit overflows
+    it."""
     P, p = mesh.P, scratch.p
     if p[0] != P[v, 0] or p[1] != P[v, 1] or p[2] != P[v, 2]:
         mesh.moved[v] = True
     n = log.count[LOG_COLLAPSES]
-    removed, n_changed = _collapse(u, v, p.copy(), mesh, rules, terms, scratch, log.changed,
-                                   log.count[LOG_CHANGED], kinds)
+    removed, n_changed, npairs, nt = _collapse(u, v, p.copy(), mesh, rules, terms, scratch,
+                                               log.changed, log.count[LOG_CHANGED], kinds)
     log.count[LOG_CHANGED] = n_changed
+    _log_wedges(log, npairs, nt, mesh, rules, scratch)
     efaces = scratch.efaces
     for i in range(min(removed, 2)):
         log.faces[n, i] = efaces[i]
@@ -197,6 +238,8 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
                       iws, float(BACKGROUND))
     log.count[LOG_COLLAPSES] = n + 1
     log.start[n + 1] = log.count[LOG_CHANGED]
+    log.pair_start[n + 1] = log.count[LOG_PAIRS]
+    log.wedge_start[n + 1] = log.count[LOG_WEDGES]
     return removed, images
 
 
@@ -281,10 +324,13 @@ def _requeue_apexes(heap, u, v, removed, mesh, rules, terms, scratch, images, qu
 def _new_log(max_collapses, m):
     """An empty :data:`~methods.engine.state.Log` for ``max_collapses`` collapses of a
     mesh of ``m`` faces."""
-    return Log(np.empty(max_collapses), np.empty(max_collapses, np.int32),
-               np.empty(max_collapses, np.int32), np.empty((max_collapses, 3)),
-               np.full((max_collapses, 2), -1, np.int64), np.zeros(max_collapses + 1, np.int64),
-               np.empty(max(LOG_CHANGED_MIN, 3 * m), np.int64), np.zeros(2, np.int64))
+    c = max_collapses
+    return Log(np.empty(c), np.empty(c, np.int32), np.empty(c, np.int32), np.empty((c, 3)),
+               np.full((c, 2), -1, np.int64), np.zeros(c + 1, np.int64),
+               np.empty(max(LOG_CHANGED_MIN, 3 * m), np.int64),
+               np.zeros(c + 1, np.int64), np.empty((max(WEDGE_PAIRS_CAP, c), 2), np.int64),
+               np.zeros(c + 1, np.int64), np.empty(max(WEDGE_TARGETS_CAP, 2 * c), np.int64),
+               np.empty((max(WEDGE_TARGETS_CAP, 2 * c), 2)), np.zeros(N_LOG_COUNTS, np.int64))
 
 
 @njit(cache=True)

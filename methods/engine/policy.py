@@ -32,7 +32,7 @@ PLACEMENTS = {"optimal": PLACE_OPTIMAL, "endpoints": PLACE_ENDPOINTS,
 #   - duplicate face: a face of u, renamed to v, would coincide with a face of v;
 #   - fold-over: a moved face turns its normal by more than ``max_normal_rotation`` or
 #     loses its area;
-#   - seam rule: see methods.engine.cost._forced_end.
+#   - seam rule (and boundary rule): the vertex-kind tables below (an infinite cost).
 # Each code is 1 + its name's index in REJECTIONS, the order of the ``rejects`` counts.
 VALID = 0
 REJECT_LINK_CONDITION = 1
@@ -49,6 +49,33 @@ REJECTIONS = ("link condition", "boundary pinch", "duplicate face", "fold-over",
 
 
 STOP_REASONS = {0: "reached the target", 1: "no valid collapse remains"}
+
+
+# Vertex kinds and the rules over them (methods.engine.cost._forced_end reads the
+# tables; row = the kind of an edge's first end, column = its second end's):
+#   - seam rule (``seam_rule``): a seam vertex (its faces use two or more wedges) may
+#     only move along its seam. An edge from a seam vertex to an ordinary one is a
+#     half-edge collapse that keeps the seam vertex where it is; an edge between two
+#     seam vertices must itself be a seam edge (else it would cut a UV chart in two),
+#     and is then placed freely;
+#   - boundary rule (``boundary_rule``): a boundary vertex is never merged into an
+#     interior one (the hole would grow into the surface); the boundary end stays.
+# When both rules apply and keep different ends, the collapse is forbidden.
+VERTEX_ORDINARY = 0
+VERTEX_SEAM = 1
+VERTEX_INTERIOR = 0
+VERTEX_BOUNDARY = 1
+
+#: What a rule says about an edge's ends.
+END_FREE = 0          # either end may go, placed by the policy
+END_KEEP_FIRST = 1    # the first end stays where it is
+END_KEEP_SECOND = 2   # the second end stays
+END_SEAM_EDGE = 3     # free if the edge is a seam edge, else forbidden
+
+SEAM_RULE = np.array([[END_FREE, END_KEEP_SECOND],          # ordinary, (ordinary, seam)
+                      [END_KEEP_FIRST, END_SEAM_EDGE]])      # seam,     (ordinary, seam)
+BOUNDARY_RULE = np.array([[END_FREE, END_KEEP_SECOND],      # interior, (interior, boundary)
+                          [END_KEEP_FIRST, END_FREE]])       # boundary, (interior, boundary)
 
 
 _N_REJECTIONS = len(REJECTIONS)
@@ -146,7 +173,12 @@ class EngineResult:
         new position, ``removed_faces`` (c, 2) faces deleted (-1 when only one),
         ``changed_start`` (c + 1,) and ``changed_faces``: CSR lists of the faces whose
         corner moved from ``removed`` to ``kept`` (each is one face removed and one
-        created, under the same id).
+        created, under the same id); ``pair_start`` (c + 1,) and ``wedge_pairs`` (k, 2):
+        CSR lists of the distinct wedge pairs (removed's wedge, kept's wedge) merged
+        across the removed faces; ``wedge_start`` (c + 1,), ``wedges`` and ``wedge_uv``
+        (k, 2): CSR lists of the merged vertex's distinct wedges (the removed vertex's
+        corners first, then the kept one's, removed faces included) and their UVs after
+        the collapse (zeros without UVs). Wedge ids are the input's render vertices.
     """
 
     mesh: Mesh

@@ -8,6 +8,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from bench.io.atlas import wedge_tiles
 from bench.mesh import Mesh
 from methods.engine.loop import _run
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
@@ -18,6 +19,8 @@ from methods.engine.state import (
     KIND_TWIN,
     LOG_CHANGED,
     LOG_COLLAPSES,
+    LOG_PAIRS,
+    LOG_WEDGES,
     N_KINDS,
     WEDGE_QUADRIC_SIZE,
     Images,
@@ -31,8 +34,11 @@ from methods.engine.topology import _corner_lists, vboundary_of
 from methods.engine.wedges import _face_kappa
 from methods.imaging.state import dummy_state
 
+#: The default policy (one shared instance: a Policy is never modified).
+DEFAULT_POLICY = Policy()
 
-def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
+
+def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY,
                   verify: bool = False, borders: np.ndarray | None = None,
                   image=None, max_collapses: int | None = None) -> EngineResult:
     """Collapse edges of ``mesh`` until it has at most ``target_faces`` faces (or no
@@ -80,10 +86,11 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     image_stats = {} if image is None else image.statistics(
         mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
         arrays.vhead, arrays.cnext, arrays.valive, prep.lo, prep.scale)
-    simplified = _extract(mesh, np.where(arrays.moved[:, None],
-                                         arrays.P * prep.scale + prep.lo, prep.P0),
-                          arrays.FW[arrays.falive], arrays.wedge_vertex,
-                          arrays.uv if rules.has_uv else None)
+    tiles = wedge_tiles(mesh)
+    simplified, clamped = _extract(mesh, np.where(arrays.moved[:, None],
+                                                  arrays.P * prep.scale + prep.lo, prep.P0),
+                                   arrays.FW[arrays.falive], arrays.wedge_vertex,
+                                   arrays.uv if rules.has_uv else None, tiles)
     faces = int(arrays.falive.sum())
     n = int(log.count[LOG_COLLAPSES])
     reason = None
@@ -94,7 +101,9 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = Policy(),
     stats = _statistics(n, evaluations, mismatches, rejects, prep.kinds, verify,
                         time.perf_counter() - start)
     stats.update(image_stats)
-    out_log, Q, valive = _log_in_input_numbering(log, prep, arrays)
+    if tiles is not None:
+        stats["uvs_kept_in_tile"] = clamped
+    out_log, Q, valive = _log_in_input_numbering(log, prep, arrays, tiles)
     return EngineResult(simplified, reason, stats, out_log, quadrics=Q, vertex_alive=valive,
                         images=None if image is None else images.img.Y)
 
@@ -228,9 +237,10 @@ def _statistics(n, evaluations, mismatches, rejects, kinds, verify, seconds) -> 
     return stats
 
 
-def _log_in_input_numbering(log, prep: _Prepared, a: MeshArrays):
+def _log_in_input_numbering(log, prep: _Prepared, a: MeshArrays, tiles=None):
     """The kernel's log trimmed to its collapses, in the input's vertex and face
-    numbering and units, with the final quadrics and live vertices."""
+    numbering and units, with the final quadrics and live vertices; merged wedges' UVs
+    kept in their material's tile as in :func:`_extract`."""
     n, n_changed = int(log.count[LOG_COLLAPSES]), int(log.count[LOG_CHANGED])
     removed, kept, faces = log.removed[:n], log.kept[:n], log.faces[:n]
     changed, Q, valive = log.changed[:n_changed], a.Q, a.valive
@@ -240,9 +250,14 @@ def _log_in_input_numbering(log, prep: _Prepared, a: MeshArrays):
         faces = np.where(faces >= 0, fperm[np.maximum(faces, 0)], -1)
         changed = fperm[changed]
         Q, valive = Q[np.argsort(vperm)], valive[np.argsort(vperm)]
+    n_pairs, n_wedges = int(log.count[LOG_PAIRS]), int(log.count[LOG_WEDGES])
     out = {"removed": removed, "kept": kept, "position": log.pos[:n] * prep.scale + prep.lo,
            "removed_faces": faces, "changed_start": log.start[:n + 1],
-           "changed_faces": changed, "cost": log.cost[:n]}
+           "changed_faces": changed, "cost": log.cost[:n],
+           # wedges (render vertices) are never renumbered
+           "pair_start": log.pair_start[:n + 1], "wedge_pairs": log.pairs[:n_pairs],
+           "wedge_start": log.wedge_start[:n + 1], "wedges": log.wedges[:n_wedges],
+           "wedge_uv": _in_tiles(log.wedge_uv[:n_wedges], log.wedges[:n_wedges], tiles)[0]}
     return out, Q, valive
 
 
@@ -256,13 +271,30 @@ def _morton(points: np.ndarray) -> np.ndarray:
     return code
 
 
-def _extract(mesh: Mesh, P, faces_wedges, wedge_vertex, uv) -> Mesh:
+def _extract(mesh: Mesh, P, faces_wedges, wedge_vertex, uv, tiles=None):
     """Render vertices from the surviving wedges: each keeps its attributes and takes
-    the position of the welded vertex it now belongs to."""
+    the position of the welded vertex it now belongs to. Returns the mesh and how many
+    UVs :func:`_in_tiles` moved back into their material's tile."""
     used, faces = np.unique(faces_wedges.reshape(-1), return_inverse=True)
     positions = P[wedge_vertex[used]]
+    uv, clamped = (None, 0) if uv is None else _in_tiles(uv[used], used, tiles)
     return mesh.replace(
-        positions=positions, faces=faces.reshape(-1, 3).astype(np.int32),
-        uv=None if uv is None else uv[used],
+        positions=positions, faces=faces.reshape(-1, 3).astype(np.int32), uv=uv,
         colors=None if mesh.colors is None else mesh.colors[used],
-        normals=None)
+        normals=None), clamped
+
+
+def _in_tiles(uv: np.ndarray, wedges: np.ndarray, tiles):
+    """``uv`` of ``wedges`` clamped into each wedge's material tile
+    (:func:`bench.io.atlas.wedge_tiles`) on a mesh with several materials; unchanged
+    otherwise. Returns the UVs and how many moved.
+
+    The seam rule keeps each face's wedges within one material, but a merged wedge's
+    new UV can leave its chart: the texture quadrics' minimiser, or an extrapolation
+    along the edge, may lie beyond the chart's border, which in an atlas is another
+    material's tile (on ``two-materials`` at 10 %, two faces near a pole sampled the
+    other texture). The clamp keeps each wedge on its own material's texels."""
+    if tiles is None:
+        return uv, 0
+    kept = np.clip(uv, tiles[wedges, :2], tiles[wedges, 2:])
+    return kept, int((kept != uv).any(axis=1).sum())

@@ -14,7 +14,8 @@ Terms         read-only inputs of the cost terms (texture borders, κ per face, 
 Scratch       per-candidate scratch, overwritten by every evaluation and collapse
 Queue         the lazy priority queue's bookkeeping (stamps, last keys)
 Blocked       rejected candidates waiting for an endpoint's stamp to change
-Log           the collapse log (one row per collapse, CSR list of changed faces)
+Log           the collapse log (one row per collapse; CSR lists of changed faces,
+              merged wedge pairs and the merged vertex's wedges with their UVs)
 ============  ==========================================================================
 
 Capacities are named here with what they bound; where a capacity can be exceeded, the
@@ -116,13 +117,23 @@ MISMATCHES = 1
 Blocked = namedtuple("Blocked", "end next live head count")
 
 #: The collapse log: ``cost``, ``removed``, ``kept`` (c,), ``pos`` (c, 3), ``faces`` (c,
-#: 2) removed faces (-1: none), ``start`` (c + 1,) and ``changed`` (grown as needed)
-#: the CSR list of faces that changed, ``count`` (2,) = (collapses, changed entries).
-Log = namedtuple("Log", "cost removed kept pos faces start changed count")
+#: 2) removed faces (-1: none); three CSR lists, each grown as needed: ``start`` (c + 1,)
+#: and ``changed``, the faces that changed; ``pair_start`` (c + 1,) and ``pairs`` (k, 2),
+#: the distinct wedge pairs (u's wedge, v's wedge) merged across the removed faces;
+#: ``wedge_start`` (c + 1,), ``wedges`` (k,) and ``wedge_uv`` (k, 2), the merged vertex's
+#: distinct wedges (u's corners first, then v's, the removed faces included) with their
+#: UVs after the collapse (0 without UVs). ``count`` (4,) indexed by LOG_*. With the
+#: positions, this is everything a consumer needs to replay the collapses without the
+#: engine's rules (:mod:`methods.mt.dag`).
+Log = namedtuple("Log", "cost removed kept pos faces start changed pair_start pairs "
+                        "wedge_start wedges wedge_uv count")
 
-#: Entries of :data:`Log`'s ``count``.
+#: Entries of :data:`Log`'s ``count``: collapses, and the used length of each CSR list.
 LOG_COLLAPSES = 0
 LOG_CHANGED = 1
+LOG_PAIRS = 2
+LOG_WEDGES = 3
+N_LOG_COUNTS = 4
 
 
 def new_scratch(nv):

@@ -55,37 +55,29 @@ def corner_wedges(F, FW, f, a, b):
 
 @njit(cache=True)
 def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
-    """Pairs (wedge of u -> wedge of v) across the faces of edge (u, v): each side of
-    the edge merges its own two wedges. Returns the number of pairs, each listed once
-    (see :func:`add_pair`)."""
+    """The distinct pairs (wedge of u -> wedge of v) across the faces of edge (u, v):
+    each side of the edge merges its own two wedges. Returns the number of pairs.
+
+    Off a seam both faces of the edge use the same two wedges, so they give one pair,
+    not two: every caller adds a pair's wedge quadric (and interpolates its UV) once per
+    pair, and a repeated pair would count the removed wedge twice. Counted twice at
+    every collapse, a wedge quadric grows geometrically along a chain of collapses
+    until rounding in its reduction over (u, v) swamps the geometry (costs of -1e14 on
+    a textured box, whose corners then go first)."""
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     npairs = 0
     for i in range(min(k, efaces.shape[0])):
         wu, wv = corner_wedges(F, FW, efaces[i], u, v)
-        npairs = add_pair(wu, wv, wmap_from, wmap_to, npairs)
-    return npairs
-
-
-@njit(cache=True)
-def add_pair(wu, wv, wmap_from, wmap_to, npairs):
-    """Append the wedge pair (wu -> wv) unless it is listed already (or wu is wv, or
-    the list is full); returns the new count.
-
-    Inside a UV chart both faces of an edge pair the same two wedges. The pairs must be
-    distinct because their users accumulate per pair: the merged wedge quadric adds
-    the quadric of ``wu`` once per pair, and interpolated UVs are blended once per
-    pair. Listed twice, an edge inside a chart added wu's quadric twice, so wedge
-    quadrics grew geometrically over a run (to 6e29 on ``crate``) until round-off
-    outweighed the cost of cutting a box corner."""
-    if wu == wv:
-        return npairs
-    for i in range(npairs):
-        if wmap_from[i] == wu and wmap_to[i] == wv:
-            return npairs
-    if npairs < wmap_from.shape[0]:
-        wmap_from[npairs] = wu
-        wmap_to[npairs] = wv
-        npairs += 1
+        if wu == wv:
+            continue
+        seen = False
+        for j in range(npairs):
+            if wmap_from[j] == wu and wmap_to[j] == wv:
+                seen = True
+        if not seen and npairs < wmap_from.shape[0]:
+            wmap_from[npairs] = wu
+            wmap_to[npairs] = wv
+            npairs += 1
     return npairs
 
 

@@ -34,12 +34,11 @@ texture quadric penalises moving a point off its place in the parameterisation, 
 is what texture deviation measures, but it bounds a sum of squared distances, not the
 maximum. Untextured meshes use the plain 1997 quadric.
 
-The engine logs positions, not attributes, so :func:`build_mt` replays the log and
-recomputes the UVs of the merged vertex's wedges by the engine's own rule (texture
-quadrics merged across paired wedges and minimised at the new position; or, without
-texture quadrics, interpolated along the collapsed edge). The replay is checked
-against the engine's final mesh in the tests: the coarsest cut has the same positions
-and UVs.
+The MT is bookkeeping over the engine's log: per collapse it names the removed and kept
+vertices, the new position, the removed faces, the wedge pairs merged across them and
+the merged vertex's wedges with their UVs after the collapse, so :func:`from_log`
+replays the sequence without a second copy of the engine's rules. The tests check the
+replay against the engine's final mesh: the coarsest cut has its positions and UVs.
 """
 
 from __future__ import annotations
@@ -50,10 +49,8 @@ import numpy as np
 from numba import njit
 
 from bench.mesh import Mesh
-from methods.engine.quadrics import _uv_minimiser
-from methods.engine.wedges import add_pair, corner_wedges
 
-__all__ = ["MultiTriangulation", "Cut", "build_mt", "from_log"]
+__all__ = ["Cut", "MultiTriangulation", "build_mt", "from_log"]
 
 #: A collapse that moves the kept vertex by less than this (on the unit-diagonal model)
 #: is a half-edge collapse: the vertex keeps its exact input position, as in the engine.
@@ -247,12 +244,12 @@ def build_mt(mesh: Mesh, texture_weight: float = 1.0, target_faces: int = 1,
     policy = Policy(placement="optimal", texture_weight=texture_weight,
                     boundary_weight=boundary_weight)
     result = simplify_mesh(mesh, max(1, int(target_faces)), policy)
-    mt = from_log(mesh, result.log, texture_weight)
+    mt = from_log(mesh, result.log)
     mt.stats = {**result.stats, "engine_stop_reason": result.stop_reason}
     return mt
 
 
-def from_log(mesh: Mesh, log: dict, texture_weight: float = 0.0) -> MultiTriangulation:
+def from_log(mesh: Mesh, log: dict) -> MultiTriangulation:
     """Replay an engine collapse log on ``mesh`` into a :class:`MultiTriangulation`.
 
     Parameters
@@ -260,29 +257,26 @@ def from_log(mesh: Mesh, log: dict, texture_weight: float = 0.0) -> MultiTriangu
     mesh : Mesh
         The mesh the engine simplified.
     log : dict of ndarray
-        :attr:`methods.engine.EngineResult.log`.
-    texture_weight : float
-        The texture weight the engine ran with (> 0: UVs of merged wedges minimise the
-        merged texture quadrics; 0: they are interpolated along the edge).
+        :attr:`methods.engine.EngineResult.log`: the collapses with their positions,
+        removed faces, wedge pairs and the merged vertices' wedges and UVs.
     """
-    from methods.engine.quadrics import wedge_quadrics
-
     w = mesh.welded
     P0 = w.positions.astype(np.float64)
     lo = P0.min(axis=0)
     scale = float(np.linalg.norm(P0.max(axis=0) - lo)) or 1.0
     Pn = (P0 - lo) / scale  # the engine's unit-diagonal coordinates
-    F = w.faces.astype(np.int64).copy()
-    FW = mesh.faces.astype(np.int64).copy()
     has_uv = mesh.uv is not None
     uv = mesh.uv.astype(np.float64).copy() if has_uv else np.zeros((mesh.n_vertices, 2))
-    use_wq = has_uv and texture_weight > 0
-    WQ = wedge_quadrics(Pn, F, FW, uv, texture_weight) if use_wq else np.zeros((1, 31))
-    out = _replay(P0.copy(), Pn, F, FW, uv, has_uv, use_wq, WQ,
-                  w.vertex_of.astype(np.int64), mesh.positions.astype(np.float64),
-                  log["removed"].astype(np.int64), log["kept"].astype(np.int64),
+    i64 = np.int64
+    out = _replay(P0.copy(), Pn, w.faces.astype(i64).copy(), mesh.faces.astype(i64).copy(),
+                  uv, w.vertex_of.astype(i64), mesh.positions.astype(np.float64),
+                  log["removed"].astype(i64), log["kept"].astype(i64),
                   np.ascontiguousarray(log["position"], dtype=np.float64),
-                  log["removed_faces"].astype(np.int64), lo, scale)
+                  log["removed_faces"].astype(i64), log["pair_start"].astype(i64),
+                  np.ascontiguousarray(log["wedge_pairs"], dtype=i64).reshape(-1, 2),
+                  log["wedge_start"].astype(i64), log["wedges"].astype(i64),
+                  np.ascontiguousarray(log["wedge_uv"], dtype=np.float64).reshape(-1, 2),
+                  lo, scale)
     (positions, uvs, welded, tris, creator, destroyer, c_start, c_list, r_start,
      r_list) = out
     c = len(log["removed"])
@@ -325,9 +319,23 @@ def _grow(a, n):
 
 
 @njit(cache=True)
-def _replay(Pw, Pn, F, FW, uv, has_uv, use_wq, WQ, wedge_vertex, wedge_pos, log_removed,
-            log_kept, log_pos, log_faces, lo, scale):
-    """Replay the collapse log; returns the MT arrays (see from_log)."""
+def _mapped(wd, pairs, p0, p1):
+    """Wedge ``wd`` after the collapse whose pairs are ``pairs[p0:p1]``."""
+    for q in range(p0, p1):
+        if pairs[q, 0] == wd:
+            return pairs[q, 1]
+    return wd
+
+
+@njit(cache=True)
+def _replay(Pw, Pn, F, FW, uv, wedge_vertex, wedge_pos, log_removed, log_kept, log_pos,
+            log_faces, pair_start, pairs, wedge_start, wedges, wedge_uv, lo, scale):
+    """Replay the collapse log; returns the MT arrays (see from_log).
+
+    Per collapse: the removed faces die; the faces around u (renamed to v) and those
+    around v whose v corner changed are replaced by new triangles; a wedge of the
+    merged vertex gets a new MT vertex when its position or UV changed, or when it
+    was u's."""
     nv = Pn.shape[0]
     m = F.shape[0]
     nw = wedge_pos.shape[0]
@@ -365,98 +373,48 @@ def _replay(Pw, Pn, F, FW, uv, has_uv, use_wq, WQ, wedge_vertex, wedge_pos, log_
     r_list = np.empty(8 * c + 16, np.int64)
     n_c = 0
     n_r = 0
-    pairs_from = np.empty(8, np.int64)
-    pairs_to = np.empty(8, np.int64)
-    targets = np.empty(256, np.int64)
     fresh = np.zeros(256, np.bool_)
     star = np.empty(1024, np.int64)
     pn = np.empty(3)
-    best = np.empty(2)
     for i in range(c):
         u = log_removed[i]
         v = log_kept[i]
+        p0, p1 = pair_start[i], pair_start[i + 1]
+        w0, w1 = wedge_start[i], wedge_start[i + 1]
         for k in range(3):
             pn[k] = (log_pos[i, k] - lo[k]) / scale
         moved = False
         for k in range(3):
             if abs(pn[k] - Pn[v, k]) > _MOVE_TOLERANCE:
                 moved = True
-        # wedge pairs across the removed faces (the engine's _wedge_pairs)
-        npairs = 0
-        for s in range(2):
-            r = log_faces[i, s]
-            if r < 0:
-                continue
-            wu, wv = corner_wedges(F, FW, r, u, v)
-            npairs = add_pair(wu, wv, pairs_from, pairs_to, npairs)
-        # the star of u and v (alive faces), and the distinct wedges after pairing
+        # the star of u and v (alive faces, each once)
         ns = 0
-        nt = 0
         for side in range(2):
             x = u if side == 0 else v
             corner = vhead[x]
             while corner != -1:
                 f = corner // 3
-                if falive[f]:
-                    if side == 0 or (F[f, 0] != u and F[f, 1] != u and F[f, 2] != u):
-                        star = _grow(star, ns)
-                        star[ns] = f
-                        ns += 1
-                    wd = FW[f, corner % 3]
-                    for q in range(npairs):
-                        if pairs_from[q] == wd:
-                            wd = pairs_to[q]
-                    seen = False
-                    for q in range(nt):
-                        if targets[q] == wd:
-                            seen = True
-                    if not seen:
-                        targets = _grow(targets, nt)
-                        fresh = _grow(fresh, nt)
-                        targets[nt] = wd
-                        fresh[nt] = moved or wedge_vertex[wd] == u
-                        nt += 1
+                if falive[f] and (side == 0 or (F[f, 0] != u and F[f, 1] != u
+                                                and F[f, 2] != u)):
+                    star = _grow(star, ns)
+                    star[ns] = f
+                    ns += 1
                 corner = cnext[corner]
-        # new UVs of the merged vertex's wedges
-        if use_wq:
-            for q in range(npairs):
-                for j in range(31):
-                    WQ[pairs_to[q], j] += WQ[pairs_from[q], j]
-            for q in range(nt):
-                wd = targets[q]
-                if _uv_minimiser(WQ[wd], pn, uv[wd], best):  # the engine's rule
-                    if best[0] != uv[wd, 0] or best[1] != uv[wd, 1]:
-                        fresh[q] = True
-                    uv[wd, 0] = best[0]
-                    uv[wd, 1] = best[1]
-        elif has_uv:
-            e0 = Pn[v, 0] - Pn[u, 0]
-            e1 = Pn[v, 1] - Pn[u, 1]
-            e2 = Pn[v, 2] - Pn[u, 2]
-            el2 = e0 * e0 + e1 * e1 + e2 * e2
-            t = 0.5
-            if el2 > 0.0:
-                t = ((pn[0] - Pn[u, 0]) * e0 + (pn[1] - Pn[u, 1]) * e1
-                     + (pn[2] - Pn[u, 2]) * e2) / el2
-                t = min(1.0, max(0.0, t))
-            for q in range(npairs):
-                a = pairs_from[q]
-                b = pairs_to[q]
-                nu0 = (1.0 - t) * uv[a, 0] + t * uv[b, 0]
-                nu1 = (1.0 - t) * uv[a, 1] + t * uv[b, 1]
-                if nu0 != uv[b, 0] or nu1 != uv[b, 1]:
-                    for q2 in range(nt):
-                        if targets[q2] == b:
-                            fresh[q2] = True
-                uv[b, 0] = nu0
-                uv[b, 1] = nu1
+        # the merged vertex's wedges take their logged UVs
+        fresh = _grow(fresh, w1 - w0)
+        for q in range(w1 - w0):
+            wd = wedges[w0 + q]
+            fresh[q] = (moved or wedge_vertex[wd] == u or wedge_uv[w0 + q, 0] != uv[wd, 0]
+                        or wedge_uv[w0 + q, 1] != uv[wd, 1])
+            uv[wd, 0] = wedge_uv[w0 + q, 0]
+            uv[wd, 1] = wedge_uv[w0 + q, 1]
         if moved:
             for k in range(3):
                 Pn[v, k] = pn[k]
                 Pw[v, k] = log_pos[i, k]
         # new MT vertices for the wedges that changed
-        for q in range(nt):
-            wd = targets[q]
+        for q in range(w1 - w0):
+            wd = wedges[w0 + q]
             wedge_vertex[wd] = v
             if fresh[q]:
                 mv_pos = _grow(mv_pos, n_mv)
@@ -485,10 +443,7 @@ def _replay(Pw, Pn, F, FW, uv, has_uv, use_wq, WQ, wedge_vertex, wedge_pos, log_
             replace = False
             for k in range(3):
                 if F[f, k] == u or F[f, k] == v:
-                    wd = FW[f, k]
-                    for q2 in range(npairs):
-                        if pairs_from[q2] == wd:
-                            wd = pairs_to[q2]
+                    wd = _mapped(FW[f, k], pairs, p0, p1)
                     if F[f, k] == u or wedge_mv[wd] != tris[face_tri[f], k]:
                         replace = True
                     F[f, k] = v

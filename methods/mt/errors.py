@@ -1,6 +1,38 @@
 """Per-view errors of Multi-Triangulation nodes (Williams et al. 2003, §3 and §5): the
 imperceptibility distance of a node's perceptual bound, or the paper's object-space,
-screen-space and silhouette-weighted comparison metrics."""
+screen-space and silhouette-weighted comparison metrics.
+
+Every error is monotone up the MT in every view — a parent's is at least each
+child's — because the bounds are nested (methods.mt.bounds: the parent's sphere
+encloses the child's, its cones contain the child's, its luminance range and deviation
+hold the child's) and each term grows with the bounds:
+
+- *culling*: a side, near or far plane that cuts no part of the parent's sphere cuts
+  none of the child's; the cone of directions from the eye to the child's sphere lies
+  within the parent's (angle between the two directions + α_child ≤ α_parent), so by
+  the triangle inequality on angles ψ_child − θ_child − α_child ≥ ψ_parent −
+  θ_parent − α_parent: a back-facing parent has back-facing children, a front-facing
+  parent front-facing ones, and a child on the silhouette has its parent on it (an
+  eye inside the parent's sphere, α = 90°, always puts the parent on the silhouette);
+- *distance*: the parent's sphere reaches nearer the eye (dist − r), so its pixels per
+  unit length are at least the child's;
+- *contrast*: the n·l range of the parent's shading cone holds the child's, luminance
+  rises with texel luminance and n·l, and (L_max − L_min) / (L_max + L_min) rises with
+  L_max and falls with L_min; a silhouette node has contrast 1;
+- *frequency and extent*: f_vis rises with contrast (the CSF's inverse), the extent
+  with the radius or the deviation.
+
+That holds in exact arithmetic. In floating point a parent whose bounds equal a
+child's but for rounding (its own sphere inside the child's, its centre moved by
+1e-16 in a merge) can come out an ulp below it, so :func:`node_errors` finally raises
+each node's error to its children's, children first: §3.4's imperceptibility distance
+of an LOD is "the maximum imperceptibility distance of all the local simplification
+operations used to generate it", and applying a node applies its descendants. With
+nested bounds this moves errors by rounding only (the tests hold the two within 1e-12);
+it is what makes them exactly monotone, which refinement relies on
+(methods.mt.refine): with monotone errors the cut at a budget does not depend on the
+cut refinement starts from.
+"""
 
 from __future__ import annotations
 
@@ -108,9 +140,19 @@ def _node_errors(center, radius, sax, sang, hax, hang, lum, dev, eye, forward, r
     return out
 
 
+@njit(cache=True)
+def _children_max(out, child_start, children):
+    """Raise each node's error to its children's, in place, children first (a child's
+    index is smaller): afterwards every node's error is the maximum over its subtree."""
+    for i in range(out.shape[0]):
+        for j in range(child_start[i], child_start[i + 1]):
+            out[i] = max(out[i], out[children[j]])
+
+
 def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perceptual",
                 lighting: str = "gouraud", specular: bool = True, ppd: float = 32.0,
-                csf: ContrastSensitivity | None = None, silhouette_factor: float = 10.0):
+                csf: ContrastSensitivity | None = None, silhouette_factor: float = 10.0,
+                children_max: bool = True):
     """Per-node errors from one camera (see the module docstring).
 
     Parameters
@@ -127,12 +169,17 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
         Observer: pixels per degree of visual angle.
     csf : ContrastSensitivity, optional
     silhouette_factor : float
+    children_max : bool
+        Raise each node's error to its children's (the module docstring); False gives
+        each node's own error, for tests and diagnostics.
 
     Returns
     -------
     errors : ndarray of shape (c,)
+        Monotone up the MT when ``children_max``.
     status : ndarray of shape (c,) int8
-        0 invisible (culled or back-facing), 1 front-facing, 2 silhouette.
+        0 invisible (culled or back-facing), 1 front-facing, 2 silhouette: each node's
+        own test.
     """
     if error not in ERRORS:
         raise ValueError(f"error must be one of {', '.join(ERRORS)}, got {error!r}")
@@ -156,4 +203,6 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
                  float(camera.near), float(camera.far), float(resolution), float(ppd),
                  ERRORS[error], LIGHTINGS[lighting], SPECULAR if specular else 0.0,
                  float(silhouette_factor), c_lo, c_hi, table, out, status)
+    if children_max:
+        _children_max(out, bounds.child_start, bounds.children)
     return out, status

@@ -1,5 +1,15 @@
 """Budget refinement of a cut with two queues (Williams et al. 2003, §5.1): refine the
-node of largest error, coarsen the one of smallest, until the face budget holds."""
+node of largest error, coarsen the one of smallest, until the face budget holds.
+
+Where refinement starts does not matter. Nodes are ranked by (error, index): errors
+are monotone up the MT (a parent's is at least its children's, methods.mt.errors) and
+a parent's index is larger than its children's, so the ranking is a strict order in
+which every parent comes after its children. The refined set of the cut the loop ends
+on is then the longest run of top-ranked nodes that fits the budget (:func:`_refine`
+says why), whichever cut it started from: the previous view's cut only saves work, as
+§5.1 intends. Without the index, equal errors (every invisible node's is 0) would be
+taken in whatever order the heaps hold them, and the cut would depend on the start.
+"""
 
 from __future__ import annotations
 
@@ -13,11 +23,23 @@ from methods.mt.csf import ContrastSensitivity
 from methods.mt.dag import Cut, MultiTriangulation, _set_applied, _set_refined
 from methods.mt.errors import node_errors
 
+#: Tie orders of the two heaps on equal keys: R (keyed by -error) pops the larger node
+#: index first, L (keyed by error) the smaller: both follow the (error, index) ranking.
+_R_TIES = -1
+_L_TIES = 1
+
 
 @njit(cache=True)
-def _heap_push(keys, vals, n, key, val):
+def _before(ka, va, kb, vb, ties):
+    """Whether entry (ka, va) pops before (kb, vb): smaller key, or on equal keys the
+    value first in the ``ties`` order (1: smaller value, -1: larger)."""
+    return ka < kb or (ka == kb and ties * va < ties * vb)
+
+
+@njit(cache=True)
+def _heap_push(keys, vals, n, key, val, ties):
     """Min-heap push on (keys, vals)[:n], growing the arrays when full; returns
-    (keys, vals, new size)."""
+    (keys, vals, new size). Equal keys are ordered by value (see :func:`_before`)."""
     if n == keys.shape[0]:
         k2 = np.empty(2 * n + 16)
         v2 = np.empty(2 * n + 16, np.int64)
@@ -29,7 +51,7 @@ def _heap_push(keys, vals, n, key, val):
     vals[i] = val
     while i > 0:
         p = (i - 1) // 2
-        if keys[p] <= keys[i]:
+        if not _before(keys[i], vals[i], keys[p], vals[p], ties):
             break
         keys[p], keys[i] = keys[i], keys[p]
         vals[p], vals[i] = vals[i], vals[p]
@@ -38,8 +60,9 @@ def _heap_push(keys, vals, n, key, val):
 
 
 @njit(cache=True)
-def _heap_pop(keys, vals, n):
-    """Pop the minimum of (keys, vals)[:n]; returns (value, new size)."""
+def _heap_pop(keys, vals, n, ties):
+    """Pop the first entry of (keys, vals)[:n] (see :func:`_before`); returns
+    (value, new size)."""
     top = vals[0]
     n -= 1
     keys[0] = keys[n]
@@ -50,8 +73,8 @@ def _heap_pop(keys, vals, n):
         if a >= n:
             break
         b = a + 1
-        s = a if b >= n or keys[a] <= keys[b] else b
-        if keys[i] <= keys[s]:
+        s = a if b >= n or not _before(keys[b], vals[b], keys[a], vals[a], ties) else b
+        if not _before(keys[s], vals[s], keys[i], vals[i], ties):
             break
         keys[i], keys[s] = keys[s], keys[i]
         vals[i], vals[s] = vals[s], vals[i]
@@ -64,11 +87,11 @@ def _lower_one(i, err, applied, delta, parent_start, parents, child_start, child
                n_rc, rk, rv, nr, lk, lv, nl):
     """Apply frontier node i; it joins R, parents that became lowerable join L."""
     _set_applied(i, applied, parent_start, parents, child_start, children, n_ap, n_rc)
-    rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i)
+    rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i, _R_TIES)
     for j in range(parent_start[i], parent_start[i + 1]):
         p = parents[j]
         if n_rc[p] == 0:
-            lk, lv, nl = _heap_push(lk, lv, nl, err[p], p)
+            lk, lv, nl = _heap_push(lk, lv, nl, err[p], p, _L_TIES)
     return rk, rv, nr, lk, lv, nl
 
 
@@ -77,11 +100,11 @@ def _raise_one(i, err, applied, delta, parent_start, parents, child_start, child
                n_rc, rk, rv, nr, lk, lv, nl):
     """Refine frontier node i; it joins L, children that became raisable join R."""
     _set_refined(i, applied, parent_start, parents, child_start, children, n_ap, n_rc)
-    lk, lv, nl = _heap_push(lk, lv, nl, err[i], i)
+    lk, lv, nl = _heap_push(lk, lv, nl, err[i], i, _L_TIES)
     for j in range(child_start[i], child_start[i + 1]):
         ch = children[j]
         if n_ap[ch] == 0:
-            rk, rv, nr = _heap_push(rk, rv, nr, -err[ch], ch)
+            rk, rv, nr = _heap_push(rk, rv, nr, -err[ch], ch, _R_TIES)
     return rk, rv, nr, lk, lv, nl
 
 
@@ -97,7 +120,20 @@ def _refine(budget, err, applied, n_faces, delta, parent_start, parents, child_s
     when popped. The loop alternates a lowering phase (while over budget) and a raising
     phase (while within it) and stops when the node lowered last is the node raised
     last, so it ends after a lowering phase: the cut meets the budget whenever the
-    coarsest cut does, and is short of it by less than that node's faces."""
+    coarsest cut does, and is short of it by less than that node's faces.
+
+    Why the end does not depend on the start, when errors are monotone up the MT: rank
+    nodes by (error, index), the order both heaps pop in. Parents outrank their
+    children, so the top of R is the highest-ranked applied node and the top of L the
+    lowest-ranked refined one. A raising phase refines applied nodes from the top rank
+    down and ends at a node x that breaks the budget; then no node above x is applied.
+    The lowering phase coarsens refined nodes from the bottom rank up. If it reaches
+    x, the refined nodes are exactly those above x and x, over budget, while those
+    above x alone fit (they are a subset of the cut before x was raised, and every
+    node adds at least one face): it drops x and stops on the longest run of
+    top-ranked nodes that fits the budget, the same from any start. If it stops short
+    of x, every applied node ranks below x, so the next raising phase ends below x:
+    at most one round per node."""
     c = applied.shape[0]
     rk = np.empty(c + 16)
     rv = np.empty(c + 16, np.int64)
@@ -107,18 +143,18 @@ def _refine(budget, err, applied, n_faces, delta, parent_start, parents, child_s
     nl = 0
     for i in range(c):
         if applied[i] and n_ap[i] == 0:
-            rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i)
+            rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i, _R_TIES)
         elif not applied[i] and n_rc[i] == 0:
-            lk, lv, nl = _heap_push(lk, lv, nl, err[i], i)
+            lk, lv, nl = _heap_push(lk, lv, nl, err[i], i, _L_TIES)
     last_raised = -1
     raised = 0
     lowered = 0
-    # Each exchange trades a refined node for one of larger error, so the loop ends;
-    # the cap is a guard against error ties cycling.
+    # Each round ends on a lower-ranked node than the last (see above), so the loop
+    # ends; the cap guards against errors that are not monotone (or NaN).
     for _ in range(4 * c + 16):
         last_dropped = -1
         while n_faces > budget and nl > 0:
-            i, nl = _heap_pop(lk, lv, nl)
+            i, nl = _heap_pop(lk, lv, nl, _L_TIES)
             if applied[i] or n_rc[i] != 0:
                 continue  # stale
             rk, rv, nr, lk, lv, nl = _lower_one(i, err, applied, delta, parent_start, parents,
@@ -131,7 +167,7 @@ def _refine(budget, err, applied, n_faces, delta, parent_start, parents, child_s
             break
         last_raised = -1
         while n_faces <= budget and nr > 0:
-            i, nr = _heap_pop(rk, rv, nr)
+            i, nr = _heap_pop(rk, rv, nr, _R_TIES)
             if not applied[i] or n_ap[i] != 0:
                 continue  # stale
             rk, rv, nr, lk, lv, nl = _raise_one(i, err, applied, delta, parent_start, parents,
@@ -143,7 +179,7 @@ def _refine(budget, err, applied, n_faces, delta, parent_start, parents, child_s
         if last_raised == -1:
             break
     while n_faces > budget and nl > 0:  # only after the guard tripped: back to the budget
-        i, nl = _heap_pop(lk, lv, nl)
+        i, nl = _heap_pop(lk, lv, nl, _L_TIES)
         if applied[i] or n_rc[i] != 0:
             continue
         rk, rv, nr, lk, lv, nl = _lower_one(i, err, applied, delta, parent_start, parents,
@@ -159,7 +195,10 @@ def refine(cut: Cut, errors: np.ndarray, budget: int) -> tuple[int, int]:
 
     Returns (nodes raised, nodes lowered). The result has at most ``budget`` faces
     (unless even the coarsest cut has more) and more than ``budget`` minus the faces of
-    the last node lowered.
+    the last node lowered. When ``errors`` are monotone up the MT (a parent's at least
+    its children's, as every error of methods.mt.errors is), the result is the same
+    from any starting cut: the nodes refined are the longest run of the ranking by
+    (error, index), from the top, that fits the budget.
     """
     mt = cut.mt
     if budget < 1:
@@ -194,7 +233,7 @@ class Refiner:
     def refine_view(self, camera, budget: int, resolution: int) -> dict:
         """Refine the current cut for ``camera``; returns timing and counts."""
         t = time.perf_counter()
-        err, status = self.errors(camera, resolution)
+        err, _ = self.errors(camera, resolution)
         t_err = time.perf_counter() - t
         raised, lowered = refine(self.cut, err, budget)
         return {"seconds": time.perf_counter() - t, "error_seconds": t_err, "raised": raised,

@@ -35,3 +35,43 @@ class Raise(Method):
 
     def simplify(self, mesh, target_faces, ctx=None):
         raise RuntimeError(self.params.message)
+
+
+class Sleep(Method):
+    """Notes each attempt in ``marker`` (a line "pid parent-pid": the job process and the
+    worker that runs it), then sleeps ``seconds`` — only on the first attempt when
+    ``once`` — and returns the input unchanged. For the Dask tests: a job to kill a
+    worker under, or to interrupt."""
+
+    name = "sleep"
+
+    @dataclass
+    class Params:
+        seconds: float = 0.0
+        marker: str = ""
+        once: bool = False
+
+    def simplify(self, mesh, target_faces, ctx=None):
+        from bench.method import SimplifyResult
+
+        first = True
+        if self.params.marker:
+            first = not os.path.exists(self.params.marker)
+            with open(self.params.marker, "a") as f:
+                f.write(f"{os.getpid()} {os.getppid()}\n")
+        if first or not self.params.once:
+            time.sleep(self.params.seconds)
+        return SimplifyResult(mesh, stop_reason="sleep returns its input")
+
+
+class KillWorker(Method):
+    """Kills the process that supervises it (a Dask worker), as a machine lost mid-job
+    would, on every attempt."""
+
+    name = "kill-worker"
+
+    def simplify(self, mesh, target_faces, ctx=None):
+        import signal
+
+        os.kill(os.getppid(), signal.SIGKILL)
+        time.sleep(3600)  # ended by the job process's watch on its parent
