@@ -36,8 +36,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def one_line(text) -> str:
+    """``text`` as one line: newlines and other control characters (from a file name, a
+    record, a backend's message) are shown escaped, never passed to the terminal."""
+    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in str(text))
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    print(f"bench: warning: {message}", file=sys.stderr)
+    print(f"bench: warning: {one_line(message)}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -49,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     except BenchError as exc:
         if args.debug:
             traceback.print_exception(exc)
-        print(f"bench: error: {exc}", file=sys.stderr)
+        print(f"bench: error: {one_line(exc)}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print("bench: interrupted", file=sys.stderr)

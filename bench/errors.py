@@ -44,3 +44,7 @@ class MethodError(BenchError):
 
 class MeshWarning(UserWarning):
     """Something about an input mesh the user should know, which did not stop us."""
+
+
+class RecordWarning(UserWarning):
+    """A record, or an image it names, that a report or table left out (and why)."""

@@ -126,10 +126,20 @@ def _default_methods_line(methods, names: list[str], meshes: dict) -> str:
 
 
 def finish(out: Path, build_report: bool = True) -> int:
-    """Write results.csv (and the report) from every record in ``out``; print a summary."""
+    """Write results.csv (and the report) from every record in ``out``; print a summary.
+
+    A record that cannot be used (damaged, or not a record) is left out with a warning
+    and a note in the report, so one bad file does not hide the rest of a run.
+    """
+    import warnings
+
+    from bench.errors import RecordWarning
     from bench.harness.results import load_records, records_table, write_table
 
-    records = load_records(out)
+    skipped = []
+    records = load_records(out, skipped=skipped)
+    for note in skipped:
+        warnings.warn(note, RecordWarning, stacklevel=2)
     csv = write_table(out, records)
     table = records_table(records)
     cols = ["model", "method", "target_faces", "faces", "d_rms", "hausdorff_mean",
@@ -144,7 +154,7 @@ def finish(out: Path, build_report: bool = True) -> int:
     if build_report:
         from bench.harness.report import write_report
 
-        print(f"bench: wrote {write_report(out, records)}", file=sys.stderr)
+        print(f"bench: wrote {write_report(out, records, skipped)}", file=sys.stderr)
     if len(failed):
         print(f"bench: {len(failed)} of {len(table)} jobs failed (see the report or "
               f"{out}/records)", file=sys.stderr)
