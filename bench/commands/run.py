@@ -9,9 +9,9 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.harness.runner import execute, plan
+from bench.harness.runner import execute, method_label, plan
 from bench.harness.suites import evaluation_protocols, get_suite
-from bench.method import parse_params, resolve_target
+from bench.method import canonical_params, resolve_target
 from bench.models import resolve_model
 from bench.registry import registry
 
@@ -82,8 +82,11 @@ def run(args) -> int:
         variants = list(suite.variants)
     else:
         variants = [(e.name, {}) for e in methods if e.available]
-    for name, params in variants:  # fail on typos before any work starts
-        parse_params(methods.load(name).Params, [f"{k}={v}" for k, v in params.items()])
+    distinct = {}  # fail on typos before any work starts; one variant per distinct job
+    for name, params in variants:
+        params = canonical_params(methods.load(name).Params, params)
+        distinct.setdefault(method_label(name, params), (name, params))
+    variants = list(distinct.values())
 
     meshes = {m: resolve_model(m) for m in models}
     if not args.methods and not (suite and suite.variants is not None):

@@ -14,19 +14,27 @@ A metric registered by a third-party package is checked like a built-in one, by 
 the record's ``metric_errors``) is ``newly failing`` where the baseline has a value.
 Metrics of the run that the baseline lacks (a newly registered metric) are not compared:
 make a new baseline to gate them.
+
+Jobs are matched by ``model | method label | target faces | evaluation shading``, never
+by the record's file name. Labels are compared in their canonical form
+(:func:`canonical_label`), as ``bench run`` writes them now: a baseline written when
+explicit defaults stayed in the label (``image-driven[interior_views=0]``) or values kept
+their typed form (``qualitythr=0.50``) matches the same job of a current run.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.errors import InputError
+from bench.errors import BenchError, InputError
 
-__all__ = ["BASELINE_SCHEMA", "make_baseline", "compare", "FAILING_MARKS", "metric_directions"]
+__all__ = ["BASELINE_SCHEMA", "FAILING_MARKS", "canonical_label", "compare", "load_baseline",
+           "make_baseline", "metric_directions"]
 
 BASELINE_SCHEMA = 1
 FAILING_MARKS = ("worse", "newly failing", "missing")
@@ -48,7 +56,43 @@ def metric_directions() -> dict[str, bool]:
 def _key(model: str, label: str, target: int, shading: str) -> str:
     """``model | method | target | shading``; the shading is the evaluation's, with
     ``-spec`` when specular was on (:func:`bench.harness.results.shading_label`)."""
-    return f"{model} | {label} | {target} | {shading}"
+    return f"{model} | {canonical_label(label)} | {target} | {shading}"
+
+
+@functools.cache
+def canonical_label(label: str) -> str:
+    """``name[key=value,...]`` with its parameters as a job holds them now
+    (:func:`bench.method.canonical_params`: defaults left out, values in their shortest
+    form); the label unchanged when it does not parse or its method is not installed."""
+    from bench.harness.runner import method_label
+    from bench.method import canonical_params
+    from bench.registry import registry
+
+    name, bracket, rest = label.partition("[")
+    if not bracket or not rest.endswith("]"):
+        return label
+    params = {}
+    for item in rest[:-1].split(","):
+        key, sep, value = item.partition("=")
+        if not sep:
+            return label
+        params[key] = value
+    try:
+        return method_label(name, canonical_params(registry("method").load(name).Params, params))
+    except (BenchError, ImportError):
+        return label
+
+
+def _canonical_entries(entries: dict) -> dict:
+    """``entries`` keyed by :func:`_key` of their parsed key (a baseline's own keys may
+    predate canonical labels)."""
+    out = {}
+    for key, entry in entries.items():
+        parts = key.split(" | ")
+        if len(parts) == 4:
+            key = " | ".join([parts[0], canonical_label(parts[1]), *parts[2:]])
+        out.setdefault(key, entry)
+    return out
 
 
 def make_baseline(records: list[dict]) -> dict:
@@ -108,7 +152,8 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
     """Rows of (job, metric, baseline, current, mark) for every job and metric."""
     directions = metric_directions()
     rows = []
-    old_all, new_all = baseline["entries"], current["entries"]
+    old_all = _canonical_entries(baseline["entries"])
+    new_all = _canonical_entries(current["entries"])
     for key in sorted(set(old_all) | set(new_all)):
         old, new = old_all.get(key), new_all.get(key)
         if new is None:

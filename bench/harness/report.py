@@ -349,7 +349,8 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str]) -> str:
             continue
         job = r["job"]
         proto = Protocol(**job["protocol"])
-        key = Job(job["model"], job["method"], job["target_faces"], job["params"], proto).key
+        key = job.get("key") or \
+            Job(job["model"], job["method"], job["target_faces"], job["params"], proto).key
         shading = proto.shading + ("-spec" if proto.specular else "")
         digest = r["model"].get("hash")
         orig_dir = f"images/original__{digest[:12]}__{shading}" if digest else None
