@@ -3,7 +3,9 @@ result under the protocol, and write records, results.csv and an HTML report to 
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import sys
 from datetime import datetime
 from pathlib import Path
@@ -35,10 +37,11 @@ def add_parser(sub, name: str) -> None:
     p.add_argument("--suite", help="a named experiment (sets models, methods, budgets and "
                    "evaluation protocols; the options above override them)")
     p.add_argument("--out", help="run directory (default: reports/run-YYYYmmdd-HHMMSS)")
-    p.add_argument("--jobs", "-j", type=int, default=os.cpu_count() or 1,
-                   help="worker processes (default: CPU count)")
+    p.add_argument("--jobs", "-j", default=str(os.cpu_count() or 1), metavar="N",
+                   help="worker processes, at least 1 (default: CPU count)")
     p.add_argument("--resume", action="store_true", help="skip jobs whose record exists in DIR")
-    p.add_argument("--timeout", type=float, default=900.0, help="seconds per job (default 900)")
+    p.add_argument("--timeout", default="900", metavar="S",
+                   help="seconds per job, finite and above 0 (default 900)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML report")
     p.set_defaults(run=run)
 
@@ -48,7 +51,11 @@ def _split(text: str | None) -> list[str]:
 
 
 def parse_variants(text: str | None) -> list[tuple[str, dict]]:
-    """'a,b[x=1,y=2]' -> [('a', {}), ('b', {'x': '1', 'y': '2'})] (brackets may hold commas)."""
+    """'a,b[x=1,y=2]' -> [('a', {}), ('b', {'x': '1', 'y': '2'})] (brackets may hold commas).
+
+    An unclosed or unmatched bracket is an error, not a variant that swallows the rest of
+    the list.
+    """
     variants, depth, current = [], 0, ""
     for ch in (text or "") + ",":
         if ch == "," and depth == 0:
@@ -56,14 +63,22 @@ def parse_variants(text: str | None) -> list[tuple[str, dict]]:
                 variants.append(current.strip())
             current = ""
             continue
-        depth += ch == "["
-        depth -= ch == "]"
+        depth += (ch == "[") - (ch == "]")
+        if depth not in (0, 1):
+            raise InputError(f"--methods: {'unmatched ]' if depth < 0 else 'nested ['} in "
+                             f"{(current + ch).strip()!r}; parameters are written "
+                             "NAME[key=value,...]")
         current += ch
+    if depth:
+        raise InputError(f"--methods: '[' not closed in {current.rstrip(',').strip()!r}; "
+                         "parameters are written NAME[key=value,...]")
     out = []
     for v in variants:
-        name, _, rest = v.partition("[")
+        name, bracket, rest = v.partition("[")
+        if not name.strip() or (bracket and not rest.endswith("]")):
+            raise InputError(f"--methods {v!r}: parameters are written NAME[key=value,...]")
         params = {}
-        for item in _split(rest.rstrip("]")):
+        for item in _split(rest[:-1]):
             key, sep, value = item.partition("=")
             if not sep:
                 raise InputError(f"--methods {v!r}: parameters are written NAME[key=value,...]")
@@ -72,7 +87,60 @@ def parse_variants(text: str | None) -> list[tuple[str, dict]]:
     return out
 
 
+def _whole(text: str, option: str) -> int:
+    """A positive whole number given on the command line (no sign, point or exponent)."""
+    if not re.fullmatch(r"\s*[0-9]+\s*", text) or int(text) < 1:
+        raise InputError(f"{option} must be a whole number of at least 1, got {text!r}")
+    return int(text)
+
+
+def _seconds(text: str, option: str) -> float:
+    """A finite number of seconds above 0 (NaN would never time out, 0 or less at once)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{option} must be a number of seconds above 0, got {text!r}")
+    return value
+
+
+def _ratio(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 < value <= 1:  # NaN fails too
+        raise InputError(f"--ratios: each must be a fraction in (0, 1], got {text!r}")
+    return value
+
+
+def _budgets(text: str | None, option: str, parse) -> list:
+    if text is None:
+        return []
+    values = [parse(t) for t in _split(text)]
+    if not values:
+        raise InputError(f"{option}: no budget given in {text!r}")
+    return values
+
+
+def _check_out(out: Path) -> None:
+    """Fail before any work when the run directory cannot be made or written."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: exists and is not a directory")
+    existing = next(p for p in (out, *out.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise InputError(f"--out {out}: {existing} is not a directory")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"--out {out}: {existing} is not writable")
+
+
 def run(args) -> int:
+    workers, timeout = _whole(args.jobs, "--jobs"), _seconds(args.timeout, "--timeout")
+    faces = _budgets(args.faces, "--faces", lambda t: _whole(t, "--faces"))
+    ratios = _budgets(args.ratios, "--ratios", _ratio)
+    out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
+    _check_out(out)
     suite = get_suite(args.suite) if args.suite else None
     models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
     methods = registry("method")
@@ -93,26 +161,33 @@ def run(args) -> int:
         print(_default_methods_line(methods, [n for n, _ in variants], meshes), file=sys.stderr)
     budgets = {}
     for m, mesh in meshes.items():
-        if args.faces:
-            budgets[m] = [resolve_target(mesh.n_faces, faces=int(f)) for f in _split(args.faces)]
+        if faces:
+            budgets[m] = [resolve_target(mesh.n_faces, faces=f) for f in faces]
         elif suite and m in suite.faces:
             budgets[m] = list(suite.faces[m])
         else:
-            ratios = [float(r) for r in _split(args.ratios)] or list(
-                suite.ratios if suite and suite.ratios else DEFAULT_RATIOS)
-            budgets[m] = [resolve_target(mesh.n_faces, ratio=r) for r in ratios]
+            budgets[m] = [resolve_target(mesh.n_faces, ratio=r) for r in ratios or (
+                suite.ratios if suite and suite.ratios else DEFAULT_RATIOS)]
 
     protocols = evaluation_protocols(suite, args.shading, args.specular)
-    out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
     jobs = plan(models, variants, budgets, protocols)
     if args.resume:
         jobs = [j for j in jobs if not (out / "records" / f"{j.key}.json").exists()]
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot create it ({exc.strerror or exc})") from None
     shadings = " x " + "/".join(
         p.shading + ("+specular" if p.specular else "") for p in protocols) + " shading"
     print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets"
-          f"{shadings}) with {args.jobs} workers -> {out}", file=sys.stderr)
-    execute(jobs, out, workers=args.jobs, timeout=args.timeout)
+          f"{shadings}) with {workers} workers -> {out}", file=sys.stderr)
+    try:
+        execute(jobs, out, workers=workers, timeout=timeout)
+    except KeyboardInterrupt:  # every finished job's record is already on disk
+        kept = len(list((out / "records").glob("*.json")))
+        print(f"bench: interrupted; {kept} records kept in {out}; --resume continues",
+              file=sys.stderr)
+        return 130
     return finish(out, build_report=not args.no_report)
 
 

@@ -265,8 +265,10 @@ def _cpu_model() -> str:
 
 def _worker_loop(conn, run_dir: str) -> None:
     """Serve jobs until told to stop (None). Runs in a child process."""
+    import signal
     import warnings
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's; it stops us
     warnings.simplefilter("ignore")  # per-job warnings are not the user's to read here
     while True:
         job = conn.recv()
