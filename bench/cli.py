@@ -15,6 +15,7 @@ from bench import __version__
 from bench.commands import baseline as baseline_cmd
 from bench.commands import check as check_cmd
 from bench.commands import list as list_cmd
+from bench.commands import one_line
 from bench.commands import report as report_cmd
 from bench.commands import run as run_cmd
 from bench.commands import simplify as simplify_cmd
@@ -34,12 +35,6 @@ def build_parser() -> argparse.ArgumentParser:
     for name, module in COMMANDS.items():
         module.add_parser(sub, name)
     return parser
-
-
-def one_line(text) -> str:
-    """``text`` as one line: newlines and other control characters (from a file name, a
-    record, a backend's message) are shown escaped, never passed to the terminal."""
-    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in str(text))
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

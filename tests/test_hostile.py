@@ -13,6 +13,8 @@ except the one real run (two tiny meshes with qslim).
 from __future__ import annotations
 
 import hashlib
+import json
+import math
 import os
 import re
 import signal
@@ -48,6 +50,10 @@ class Case:
     #: paths (relative to the folder) that must exist after the case, or must not
     creates: tuple[str, ...] = ()
     absent: tuple[str, ...] = ("out",)
+    #: more checks: after(folder, process)
+    after: Callable | None = None
+    #: renders (started first, so that it overlaps the quick cases)
+    slow: bool = False
 
 
 CASES: dict[str, Case] = {}
@@ -70,6 +76,62 @@ def a_file(name: str, text: str = "not a folder\n") -> Callable[[Path], None]:
     def make(folder: Path) -> None:
         tet(folder)
         (folder / name).write_text(text)
+    return make
+
+
+def record(label: str = "q", status: str = "ok", model: str = "m", **changes) -> dict:
+    """A record as the runner writes it (numbers made up; an ok one without images)."""
+    from metrics.protocol import Protocol
+
+    r = {"schema": 1, "status": status, "error": None if status == "ok" else "it broke",
+         "job": {"model": model, "method": label.split("[")[0], "params": {}, "label": label,
+                 "target_faces": 100, "protocol": Protocol().as_dict()},
+         "model": {"name": model, "hash": "0" * 40, "faces": 1000},
+         "method": {"name": label, "version": "1", "view_dependent": False},
+         "metrics": {"faces": 100, "d_rms": 5.0, "ssim": 0.9, "hausdorff_mean": 0.01,
+                     "silhouette_mean": 2.0, "boundary_edges": 0, "seam_cracks": 0},
+         "per_view": {"d_rms": [5.0] * 24}, "silhouette_histogram": [1.0] + [0.0] * 20,
+         "stats": {"wall_seconds": 1.0, "tri_per_s": 900.0, "peak_mb": 10.0},
+         "artifacts": [], "environment": {}}
+    r.update(changes)
+    return r
+
+
+FAILED = record("f", status="failed")  # a good record that draws nothing (fast reports)
+SECRET = "TOPSECRET-2b9e"
+
+
+def run_folder(*records, extra: Callable[[Path], None] | None = None) -> Callable:
+    """A run folder ``run`` with ``records`` (dicts, or str for a file's raw text), a
+    secret beside it and ``extra(folder)`` done last."""
+    def make(folder: Path) -> None:
+        (folder / "run" / "records").mkdir(parents=True)
+        for i, r in enumerate(records):
+            text = r if isinstance(r, str) else json.dumps(r)
+            (folder / "run" / "records" / f"r{i}.json").write_text(text)
+        (folder / "secret.txt").write_text(SECRET + "\n")
+        if extra:
+            extra(folder)
+    return make
+
+
+def page_is_safe(folder: Path, proc) -> None:
+    page = (folder / "run" / "index.html").read_text()
+    assert "<script" not in page.lower() and SECRET not in page
+    assert "\x1b" not in proc.stdout
+
+
+def baseline_file(data, name: str = "base.json") -> Callable[[Path], None]:
+    def make(folder: Path) -> None:
+        text = data if isinstance(data, str) else json.dumps(data)
+        (folder / name).write_text(text)
+    return make
+
+
+def both(*makers) -> Callable[[Path], None]:
+    def make(folder: Path) -> None:
+        for m in makers:
+            m(folder)
     return make
 
 
@@ -116,6 +178,183 @@ case("run unknown suite", "run", "--suite", "cii", "--out", "out",
      pattern=r"unknown suite 'cii'; did you mean 'ci'")
 
 
+# -- bench report: run folders and records -------------------------------------------------
+
+REPORT = ("report", "run")
+WARNING = r"^bench: warning: run/records/r1\.json: not a"
+case("report missing folder", "report", "nowhere", pattern=r"nowhere: not a run directory")
+case("report a file", "report", "secret.txt", files=run_folder(),
+     pattern=r"secret\.txt: not a run directory")
+case("report no records folder", "report", ".", pattern=r"not a run directory \(no records/")
+case("report no records", *REPORT, expect="ok", files=run_folder(),
+     pattern=r"^bench: wrote run/index\.html$", creates=("run/index.html", "run/results.csv"))
+for name, text in {
+        "malformed JSON": '{"schema": 1, "status": "ok"',
+        "a JSON list": "[1, 2]",
+        "a JSON string": '"ok"',
+        "empty file": "",
+        "binary": "\x00\x01\xfe\xff",
+        "deeply nested": "[" * 50_000 + "]" * 50_000,
+        "no job": json.dumps({k: v for k, v in FAILED.items() if k != "job"}),
+        "no status": json.dumps({k: v for k, v in FAILED.items() if k != "status"}),
+        "job a list": json.dumps(FAILED | {"job": []}),
+        "target faces a string": json.dumps(FAILED | {"job": FAILED["job"] | {"target_faces": "1"}}),
+        "target faces a bool": json.dumps(FAILED | {"job": FAILED["job"] | {"target_faces": True}}),
+        "label a number": json.dumps(FAILED | {"job": FAILED["job"] | {"label": 7}}),
+        "protocol missing": json.dumps(FAILED | {"job": {k: v for k, v in FAILED["job"].items()
+                                                         if k != "protocol"}}),
+        "protocol shading odd": json.dumps(FAILED | {"job": FAILED["job"] | {
+            "protocol": FAILED["job"]["protocol"] | {"shading": "phong"}}}),
+        "metric a string": json.dumps(record(metrics={"d_rms": "5"})),
+        "ok without metrics": json.dumps({k: v for k, v in record().items() if k != "metrics"}),
+        "per view not numbers": json.dumps(record(per_view={"d_rms": ["a"]})),
+        "model hash a path": json.dumps(record(model={"hash": "../../../etc", "faces": 1})),
+        "newer schema": json.dumps(FAILED | {"schema": 99}),
+        "schema a string": json.dumps(FAILED | {"schema": "1"}),
+        "status a script": json.dumps(FAILED | {"status": "<script>alert(1)</script>"}),
+        "error a list": json.dumps(FAILED | {"error": ["x"]})}.items():
+    case(f"report record {name}", *REPORT, expect="ok", files=run_folder(FAILED, text),
+         pattern=WARNING if name != "newer schema" else
+         r"^bench: warning: run/records/r1\.json: result schema 99 is newer than this bench",
+         creates=("run/index.html",), after=page_is_safe)
+case("report record is a folder", *REPORT, expect="ok", files=run_folder(
+    FAILED, extra=lambda d: (d / "run" / "records" / "r1.json").mkdir()),
+    pattern=WARNING, after=page_is_safe)
+def linked_record(folder: Path) -> None:
+    (folder / "outside.json").write_text(json.dumps(FAILED | {"error": SECRET}))
+    (folder / "run" / "records" / "r1.json").symlink_to(folder / "outside.json")
+
+
+case("report record links outside", *REPORT, expect="ok",
+     files=run_folder(FAILED, extra=linked_record),
+     pattern=r"r1\.json: links outside the run folder", after=page_is_safe)
+case("report strings with markup", *REPORT, expect="ok", files=run_folder(
+    record(label="q[x=<script>alert(1)</script>]", model="<img src=x onerror=alert(1)>",
+           metric_errors={"flip": "</pre><script>alert(2)</script>"}),
+    FAILED | {"error": "</pre><script>alert(3)</script>"}),
+    pattern=r"^bench: wrote run/index\.html$", after=page_is_safe)
+case("report strings with terminal escapes", *REPORT, expect="ok", files=run_folder(
+    FAILED | {"job": FAILED["job"] | {"model": "m\x1b]0;owned\x07\nfake line"}}),
+    pattern=r"m\\x1b\]0;owned\\x07\\nfake line", after=page_is_safe)
+case("report mathtext in a label", *REPORT, expect="ok", files=run_folder(
+    record(label="q[x=$\\frac{$]")), pattern=r"^bench: wrote run/index\.html$")
+case("report not-finite metrics", *REPORT, expect="ok", files=run_folder(
+    record(metrics=record()["metrics"] | {"d_rms": math.nan, "faces": math.inf,
+                                          "exterior_share": 0.5}, per_view={"d_rms": [1.0]})),
+    pattern=r"^bench: wrote run/index\.html$")
+for artifact in ("/etc/passwd", "../secret.txt", "../../secret.txt", "records/r0.json",
+                 "images/link.png", "images", 42):
+    def links(folder: Path) -> None:
+        (folder / "run" / "images").mkdir()
+        (folder / "run" / "images" / "link.png").symlink_to(folder / "secret.txt")
+    case(f"report artifact {artifact!r}", *REPORT, expect="ok",
+         files=run_folder(record(artifacts=[artifact]), extra=links),
+         pattern=rf"artifact '{re.escape(str(artifact))}': .*; not shown$", after=page_is_safe)
+case("report index.html links outside", *REPORT, expect="ok", files=run_folder(
+    FAILED, extra=lambda d: (d / "run" / "index.html").symlink_to(d / "secret.txt")),
+    pattern=r"^bench: wrote run/index\.html$")  # the secret is an input: hashed, unchanged
+case("report results.csv links outside", *REPORT, expect="ok", files=run_folder(
+    FAILED, extra=lambda d: (d / "run" / "results.csv").symlink_to(d / "secret.txt")),
+    pattern=r"^bench: wrote run/results\.csv$")
+case("report index.html is a folder", *REPORT, absent=(), files=run_folder(
+    FAILED, extra=lambda d: (d / "run" / "index.html").mkdir()),
+    pattern=r"^run/index\.html: cannot write it \(Is a directory\)$")
+
+
+# -- bench check and bench baseline: baselines -------------------------------------------------
+
+GOOD = record("q")
+ENTRY = {"status": "ok", "method_version": "1", "protocol_version": "1",
+         "metrics": {"d_rms": 5.0, "ssim": 0.9}}
+BASE = {"schema": 1, "entries": {"m | q | 100 | flat": ENTRY}}
+CHECK = ("check", "run", "--baseline", "base.json")
+for name, data, message in (
+        ("missing", None, r"base\.json: cannot read baseline \(\[Errno 2\]"),
+        ("malformed JSON", '{"schema": 1,', r"cannot read baseline \(Expecting"),
+        ("a JSON list", "[]", r"not a baseline: expected a JSON object, got list"),
+        ("no schema", {"entries": BASE["entries"]}, r"baseline schema None is not 1"),
+        ("schema 2", BASE | {"schema": 2}, r"baseline schema 2 is not 1"),
+        ("no entries", {"schema": 1}, r"not a baseline: no 'entries' object"),
+        ("entries a list", {"schema": 1, "entries": [1]}, r"no 'entries' object"),
+        ("empty entries", {"schema": 1, "entries": {}}, r"'entries' is empty"),
+        ("entry a number", {"schema": 1, "entries": {"k": 1}}, r"entry 'k' is not an object"),
+        ("metric a string", {"schema": 1, "entries": {"k": ENTRY | {"metrics": {"d_rms": "5"}}}},
+         r"metric 'd_rms' is '5', not a number"),
+        ("no metrics", {"schema": 1, "entries": {"k": {"status": "ok"}}}, r"no 'metrics' object"),
+        ("binary", "\x00\xff", r"cannot read baseline")):
+    makers = [run_folder(GOOD)] + ([baseline_file(data)] if data is not None else [])
+    case(f"check baseline {name}", *CHECK, files=both(*makers), pattern=message, absent=())
+case("check baseline is a folder", *CHECK, absent=(), files=both(
+    run_folder(GOOD), lambda d: (d / "base.json").mkdir()),
+    pattern=r"cannot read baseline \(\[Errno 21\] Is a directory")
+for value in ("nan", "inf", "-1", "abc"):
+    case(f"check --tolerance {value}", *CHECK, f"--tolerance={value}", absent=(),
+         files=both(run_folder(GOOD), baseline_file(BASE)),
+         pattern=rf"^--tolerance must be a finite number >= 0 .*got '{value}'$")
+case("check a malformed record", *CHECK, absent=(),
+     files=both(run_folder(GOOD, "[1]"), baseline_file(BASE)),
+     pattern=r"run/records/r1\.json: not a result record: expected a JSON object, got a list$")
+case("check no run folder", "check", "nowhere", "--baseline", "base.json", absent=(),
+     files=baseline_file(BASE), pattern=r"nowhere: not a run directory")
+case("check passes on the same numbers", *CHECK, expect="ok", code=0,
+     files=both(run_folder(GOOD), baseline_file(BASE)), pattern=r"^bench check: passed$")
+case("check a 30x regression", *CHECK, expect="ok", code=1,
+     files=both(run_folder(record(metrics={"d_rms": 150.0, "ssim": 0.9})), baseline_file(BASE)),
+     pattern=r"d_rms +5 +150 +worse")
+case("check a 30x regression at --tolerance 1e300", *CHECK, "--tolerance", "1e300",
+     expect="ok", code=0, files=both(run_folder(record(metrics={"d_rms": 150.0, "ssim": 0.9})),
+                                      baseline_file(BASE)), pattern=r"^bench check: passed$")
+case("check NaN in the baseline", *CHECK, expect="ok", code=1, files=both(
+    run_folder(GOOD), baseline_file(
+        '{"schema": 1, "entries": {"m | q | 100 | flat": {"status": "ok", "method_version": '
+        '"1", "protocol_version": "1", "metrics": {"d_rms": NaN, "ssim": 0.9}}}}')),
+    pattern=r"d_rms +nan +5 +not finite")
+case("check NaN in the run", *CHECK, expect="ok", code=1, files=both(
+    run_folder(record(metrics={"d_rms": math.nan, "ssim": 0.9})), baseline_file(BASE)),
+    pattern=r"d_rms +5 +nan +not finite")
+case("check infinite ssim is not better", *CHECK, expect="ok", code=1, files=both(
+    run_folder(record(metrics={"d_rms": 5.0, "ssim": math.inf})), baseline_file(BASE)),
+    pattern=r"ssim +0\.9 +inf +not finite")
+case("check a label written with its default", *CHECK, expect="ok", code=0, files=both(
+    run_folder(record("qslim")), baseline_file({"schema": 1, "entries": {
+        "m | qslim[qualitythr=0.30] | 100 | flat": ENTRY}})), pattern=r"^bench check: passed$")
+
+BASELINE = ("baseline", "run", "--out", "made.json")
+case("baseline no records", *BASELINE, files=run_folder(), absent=("made.json",),
+     pattern=r"^run: no records to make a baseline of$")
+case("baseline a malformed record", *BASELINE, files=run_folder(GOOD, "{"), absent=("made.json",),
+     pattern=r"run/records/r1\.json: not a readable result record")
+case("baseline a NaN metric", *BASELINE, absent=("made.json",),
+     files=run_folder(record(metrics={"d_rms": math.nan})),
+     pattern=r"job 'm \| q \| 100 \| flat' has d_rms = nan; a baseline needs finite values")
+case("baseline --out a folder", "baseline", "run", "--out", "taken", absent=(),
+     files=run_folder(GOOD, extra=lambda d: (d / "taken").mkdir()),
+     pattern=r"^taken: cannot write the baseline \(Is a directory\)$")
+case("baseline --out below a file", "baseline", "run", "--out", "secret.txt/b.json", absent=(),
+     files=run_folder(GOOD), pattern=r"^secret\.txt/b\.json: cannot write the baseline")
+case("baseline of a good run", *BASELINE, expect="ok", files=run_folder(GOOD),
+     pattern=r"^bench: wrote made\.json \(1 jobs\)$", creates=("made.json",))
+
+
+# -- a real run: two models with one file name -------------------------------------------------
+
+def two_meshes(folder: Path) -> None:
+    for sub in ("A", "B"):
+        (folder / sub).mkdir()
+        save_mesh(icosphere(1, name="mesh"), folder / sub / "mesh.obj")
+
+
+def two_records(folder: Path, proc) -> None:
+    records = [json.loads(p.read_text()) for p in (folder / "out" / "records").glob("*.json")]
+    assert sorted(r["job"]["model"] for r in records) == ["A/mesh.obj", "B/mesh.obj"]
+    assert all(r["status"] == "ok" for r in records)
+
+
+case("run two models named mesh.obj", "run", "--models", "A/mesh.obj,B/mesh.obj",
+     "--methods", "qslim", "--faces", "40", "--jobs", "2", "--no-report", "--out", "out",
+     expect="ok", files=two_meshes, pattern=r"^bench: 2 jobs", after=two_records, slow=True)
+
+
 # -- running the corpus ----------------------------------------------------------------------
 
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
@@ -132,33 +371,32 @@ def _folder_name(name: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def outcomes(tmp_path_factory):
-    """name -> (process, hashes before, hashes after, folder) for every case, run three
-    at a time."""
+def outcomes(request, tmp_path_factory):
+    """name -> (process, hashes before, hashes after, folder) for the cases selected in
+    this session (``-k`` runs only those), three processes at a time."""
+    from concurrent.futures import ThreadPoolExecutor
+
     root = tmp_path_factory.mktemp("hostile")
     env = dict(ENV, BENCH_CACHE=str(root / "cache"))
-    prepared = {}
-    for name, c in CASES.items():
+    selected = [item.callspec.params["name"] for item in request.session.items
+                if getattr(item, "originalname", None) == "test_case"
+                and item.module.__name__ == __name__]
+
+    def run(name: str):
+        c = CASES[name]
         folder = root / _folder_name(name)
         folder.mkdir()
         if c.files:
             c.files(folder)
+        before = _hashes(folder)
         args = [a.replace("{D}", str(folder)) for a in c.args]
-        prepared[name] = (folder, args, _hashes(folder))
-    done, names = {}, list(prepared)
-    for start in range(0, len(names), 3):
-        procs = {}
-        for name in names[start:start + 3]:
-            folder, args, _ = prepared[name]
-            procs[name] = subprocess.Popen([sys.executable, "-m", "bench", *args], cwd=folder,
-                                           env=env, stdout=subprocess.PIPE,
-                                           stderr=subprocess.PIPE, text=True)
-        for name, proc in procs.items():
-            out, err = proc.communicate(timeout=600)
-            folder, _, before = prepared[name]
-            done[name] = (subprocess.CompletedProcess(proc.args, proc.returncode, out, err),
-                          before, _hashes(folder), folder)
-    return done
+        proc = subprocess.run([sys.executable, "-m", "bench", *args], cwd=folder, env=env,
+                              capture_output=True, text=True, timeout=600, check=False)
+        return name, (proc, before, _hashes(folder), folder)
+
+    order = sorted(selected, key=lambda n: not CASES[n].slow)
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        return dict(pool.map(run, order))
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -178,10 +416,14 @@ def test_case(outcomes, name):
         assert proc.returncode == (0 if c.code is None else c.code), proc.stderr
         assert re.search(c.pattern, proc.stdout + proc.stderr, re.MULTILINE), \
             proc.stdout + proc.stderr
+        for line in proc.stderr.splitlines():  # messages, and the run's progress bar
+            assert line.startswith("bench") or "|" in line or not line.strip(), line
     changed = {path for path, digest in before.items() if after.get(path) != digest}
     assert not changed, f"inputs changed or removed: {sorted(changed)}"
     for path in c.creates:
         assert (folder / path).exists(), path
+    if c.after:
+        c.after(folder, proc)
     if c.expect == "error":
         for path in c.absent:
             assert not (folder / path).exists(), f"{path} left behind by an error"

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from bench.errors import InputError
 from bench.harness.report import write_report
 from bench.harness.results import load_records, write_record, write_table
 from metrics.protocol import Protocol
@@ -193,3 +194,63 @@ def test_outputs_get_the_umask_permissions(tmp_path):
         os.umask(old)
     for path in (run / "records" / "r.json", run / "index.html", run / "results.csv"):
         assert path.stat().st_mode & 0o777 == 0o644, path
+
+
+def _paths(value, prefix=()):
+    """Every key path into the dicts (and first list items) of ``value``."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            yield (*prefix, key)
+            yield from _paths(item, (*prefix, key))
+    elif isinstance(value, list) and value:
+        yield (*prefix, 0)
+        yield from _paths(value[0], (*prefix, 0))
+
+
+MUTATIONS = {"deleted": ..., "null": None, "a string": "<b>x</b>", "a list": [],
+             "an object": {}, "NaN": float("nan"), "huge": 1e308, "negative": -1, "true": True}
+
+
+def test_any_damaged_field_is_refused_at_load_or_harmless_after(tmp_path):
+    """Each field of a full record deleted or replaced by a value of another type: the
+    record is refused in one line by load_record, or the table, the gate and the report
+    all take it. Never a KeyError, TypeError or a formatting error."""
+    from bench.harness.check import compare, make_baseline
+    from bench.harness.results import load_record, records_table
+
+    base = record(artifacts=["images/a.png"], metric_errors={"flip": "boom"},
+                  stop_reason=None, seconds={"render": 1.0},
+                  environment={"git_commit": "abc", "machine": {"processor": "cpu"}})
+    base["metrics"]["exterior_share"] = 0.5
+    accepted, refused = [], 0
+    for i, path in enumerate(_paths(base)):
+        for how, value in MUTATIONS.items():
+            r = json.loads(json.dumps(base))
+            r["job"]["label"] = f"q{i}-{how.replace(' ', '-')}"
+            target = r
+            for step in path[:-1]:
+                target = target[step]
+            if how == "deleted":
+                if isinstance(target, list):
+                    continue
+                del target[path[-1]]
+            else:
+                target[path[-1]] = value
+            file = tmp_path / "r.json"
+            file.write_text(json.dumps(r))
+            try:
+                accepted.append(load_record(file))
+            except InputError as exc:
+                assert "\n" not in str(exc)
+                refused += 1
+    assert refused and len(accepted) > 100
+    records_table(accepted)
+    compare(make_baseline([base]), make_baseline(accepted))
+    run = tmp_path / "run"
+    run.mkdir()
+    try:
+        write_report(run, accepted)
+    except Exception:  # name the first record the report cannot take
+        for r in accepted:
+            write_report(run, [r])
+        raise

@@ -7,6 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from bench.commands import one_line
 from bench.harness.check import (
     FAILING_MARKS,
     check_tolerance,
@@ -38,8 +39,9 @@ def run(args) -> int:
     width = max([len(r.job) for r in shown] + [3])
     if shown:
         print(f"{'job':<{width}}  {'metric':<16} {'baseline':>12} {'current':>12}  mark")
-    for r in shown:
-        print(f"{r.job:<{width}}  {r.metric:<16} {_fmt(r.baseline):>12} {_fmt(r.current):>12}  {r.mark}")
+    for r in shown:  # job names and values come from files: shown on one line each
+        print(one_line(f"{r.job:<{width}}  {r.metric:<16} {_fmt(r.baseline):>12} "
+                       f"{_fmt(r.current):>12}  {r.mark}"))
     failing = [r for r in rows if r.mark in FAILING_MARKS]
     counts = {m: sum(r.mark == m for r in rows) for m in dict.fromkeys(r.mark for r in rows)}
     print("bench check: " + ", ".join(f"{n} {m}" for m, n in counts.items()), file=sys.stderr)

@@ -207,10 +207,13 @@ def finish(out: Path, build_report: bool = True) -> int:
     """Write results.csv (and the report) from every record in ``out``; print a summary.
 
     A record that cannot be used (damaged, or not a record) is left out with a warning
-    and a note in the report, so one bad file does not hide the rest of a run.
+    and a note in the report, so one bad file does not hide the rest of a run. The
+    summary printed comes from records that may be someone else's: its text is shown
+    with control characters escaped.
     """
     import warnings
 
+    from bench.commands import one_line
     from bench.errors import RecordWarning
     from bench.harness.results import load_records, records_table, write_table
 
@@ -218,8 +221,14 @@ def finish(out: Path, build_report: bool = True) -> int:
     records = load_records(out, skipped=skipped)
     for note in skipped:
         warnings.warn(note, RecordWarning, stacklevel=2)
-    csv = write_table(out, records)
+    written = [_writing(out / "results.csv", lambda: write_table(out, records))]
+    if build_report:  # every file is written before anything is said about the run
+        from bench.harness.report import write_report
+
+        written.append(_writing(out / "index.html", lambda: write_report(out, records, skipped)))
     table = records_table(records)
+    for column in ("model", "method", "status"):
+        table[column] = table[column].map(one_line)
     cols = ["model", "method", "target_faces", "faces", "d_rms", "hausdorff_mean",
             "seam_cracks", "seconds", "status"]
     if table.shading.nunique() > 1:
@@ -228,16 +237,22 @@ def finish(out: Path, build_report: bool = True) -> int:
         cols.insert(cols.index("seconds"), "exterior_share")
     with_pd_options(lambda: print(table[cols].to_string(index=False)))
     failed = table[table.status == "failed"]
-    print(f"bench: wrote {csv}", file=sys.stderr)
-    if build_report:
-        from bench.harness.report import write_report
-
-        print(f"bench: wrote {write_report(out, records, skipped)}", file=sys.stderr)
+    for path in written:
+        print(f"bench: wrote {path}", file=sys.stderr)
     if len(failed):
         print(f"bench: {len(failed)} of {len(table)} jobs failed (see the report or "
               f"{out}/records)", file=sys.stderr)
         return 1
     return 0
+
+
+def _writing(path: Path, write):
+    """``write()``, with a file-system error (a read-only run folder, ``index.html`` made
+    a directory) as a one-line error naming ``path``."""
+    try:
+        return write()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write it ({exc.strerror or exc})") from None
 
 
 def with_pd_options(fn):

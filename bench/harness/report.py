@@ -182,14 +182,23 @@ def _png(fig) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
 
 
-def _plots(table) -> str:
+def _pyplot():
+    """matplotlib's pyplot on the file-only backend, imported only for a report that
+    draws (a run of failures alone draws nothing and skips the import)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def _plots(table) -> str:
+    import pandas as pd
+
     if table.empty:
         return ""
+    plt = _pyplot()
     # One curve per method, and per evaluation shading when a run has several.
     series = table.method if table.shading.nunique() == 1 else \
         table.method + " (" + table.shading + ")"
@@ -199,8 +208,13 @@ def _plots(table) -> str:
                           ("hausdorff_mean", "mean Hausdorff (fraction of diagonal) vs faces — cf. Figure 6")):
         fig, ax = plt.subplots(figsize=(6, 4))
         for method, group in table.groupby(series):
-            g = group.sort_values("faces")
-            ax.plot(g.faces, g[column], marker="o", label=method)
+            # log axes: a value that is not finite and positive has no place on them
+            # (an infinite face count would abort the figure)
+            x, y = (pd.to_numeric(group[c], errors="coerce") for c in ("faces", column))
+            keep = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+            if keep.any():
+                g = group[keep].sort_values("faces")
+                ax.plot(g.faces.astype(float), g[column].astype(float), marker="o", label=method)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("faces")
@@ -238,11 +252,10 @@ def _exterior_faces(faces, share) -> int | None:
 
 
 def _silhouette_plot(records: list[dict]) -> str:
-    import matplotlib.pyplot as plt
-
     ok = [r for r in records if r["status"] == "ok" and r.get("silhouette_histogram")]
     if not ok:
         return ""
+    plt = _pyplot()
     smallest = min(r["job"]["target_faces"] for r in ok)
     # Silhouettes do not depend on the evaluation shading: one bar set per method variant.
     first = {}
@@ -350,7 +363,7 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str]) -> str:
         job = r["job"]
         proto = Protocol(**job["protocol"])
         key = job.get("key") or \
-            Job(job["model"], job["method"], job["target_faces"], job["params"], proto).key
+            Job(job["model"], job["method"], job["target_faces"], job.get("params") or {}, proto).key
         shading = proto.shading + ("-spec" if proto.specular else "")
         digest = r["model"].get("hash")
         orig_dir = f"images/original__{digest[:12]}__{shading}" if digest else None
