@@ -54,7 +54,6 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _MAX_IMAGE_BYTES = 32 << 20
 
 
-
 def write_report(run_dir: Path, records: list[dict] | None = None,
                  skipped: list[str] | tuple = ()) -> Path:
     """Build ``run_dir/index.html`` (atomically) from the records found there.
@@ -247,6 +246,7 @@ def _exterior_table(table) -> str:
 
 
 def _exterior_faces(faces, share) -> int | None:
+    """The number of exterior faces, or None when a damaged record makes it undefined."""
     product = faces * share if faces is not None else math.nan
     return round(product) if math.isfinite(product) else None
 
@@ -362,8 +362,8 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str]) -> str:
             continue
         job = r["job"]
         proto = Protocol(**job["protocol"])
-        key = job.get("key") or \
-            Job(job["model"], job["method"], job["target_faces"], job.get("params") or {}, proto).key
+        key = job.get("key") or Job(job["model"], job["method"], job["target_faces"],
+                                    job.get("params") or {}, proto).key
         shading = proto.shading + ("-spec" if proto.specular else "")
         digest = r["model"].get("hash")
         orig_dir = f"images/original__{digest[:12]}__{shading}" if digest else None
