@@ -113,3 +113,25 @@ def test_the_gate_matches_labels_written_before_they_were_canonical():
     marks = {(r.job, r.metric): r.mark for r in compare(old, new)}
     assert marks == {("m | image-driven | 100 | flat", "d_rms"): "same",
                      ("m | qslim[qualitythr=0.5] | 100 | flat", "d_rms"): "worse"}
+
+
+def test_a_report_of_an_older_run_folder_finds_its_images(tmp_path):
+    """Records written before keys carried hashes have no "key" and their images sit under
+    the old key (a path's bare stem): the report still shows them."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    from bench.harness.report import write_report
+
+    buf = io.BytesIO()
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(buf, format="PNG")
+    folder = tmp_path / "images" / "mesh__qslim__100__flat-p1"  # main's key of A/mesh.obj
+    folder.mkdir(parents=True)
+    (folder / "view00.png").write_bytes(buf.getvalue())
+    old = _record("qslim", 5.0)
+    old["job"]["model"] = "A/mesh.obj"
+    old["per_view"] = {"d_rms": [5.0] * 24}
+    page = write_report(tmp_path, [old]).read_text()
+    assert base64.b64encode(buf.getvalue()).decode() in page

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from metrics.protocol import Protocol
 
-__all__ = ["job_key"]
+__all__ = ["job_key", "legacy_job_key"]
 
 #: A name that is its own slug and cannot run into the separators around it in a key.
 _PLAIN = re.compile(r"[A-Za-z0-9_.](?:[A-Za-z0-9_.-]*[A-Za-z0-9_.])?")
@@ -37,6 +37,14 @@ def job_key(model: str, method: str, label: str, params: dict, target_faces: int
     return (f"{_model_part(model)}__{_method_part(method, label, params)}__{target_faces}"
             f"__{protocol.shading}{'-spec' if protocol.specular else ''}-p{protocol.version}"
             f"{'-' + _short_hash(settings) if settings else ''}")
+
+
+def legacy_job_key(model: str, label: str, target_faces: int, protocol: Protocol) -> str:
+    """The key records had before parts were hashed (a path's bare stem, the label's
+    slug): where a report of an older run folder finds its images."""
+    stem = _slug(Path(model).stem if os.sep in model else model)
+    return (f"{stem}__{_slug(label)}__{target_faces}"
+            f"__{protocol.shading}{'-spec' if protocol.specular else ''}-p{protocol.version}")
 
 
 def _model_part(model: str) -> str:

@@ -352,6 +352,7 @@ def _difference_uri(original: bytes | None, simplified: bytes | None) -> str | N
 def _sheets(run_dir: Path, records: list[dict], refused: list[str]) -> str:
     """The image sheets of ``records``' ok jobs and their artifacts; images that cannot
     be shown safely are left out with a reason in ``refused``."""
+    from bench.harness.keys import legacy_job_key
     from bench.harness.runner import SHEET_VIEWS, Job
     from metrics.protocol import Protocol
 
@@ -364,6 +365,8 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str]) -> str:
         proto = Protocol(**job["protocol"])
         key = job.get("key") or Job(job["model"], job["method"], job["target_faces"],
                                     job.get("params") or {}, proto).key
+        if not job.get("key") and not (run_dir / "images" / key).is_dir():  # an older run
+            key = legacy_job_key(job["model"], job["label"], job["target_faces"], proto)
         shading = proto.shading + ("-spec" if proto.specular else "")
         digest = r["model"].get("hash")
         orig_dir = f"images/original__{digest[:12]}__{shading}" if digest else None
