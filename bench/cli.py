@@ -15,6 +15,7 @@ from bench import __version__
 from bench.commands import baseline as baseline_cmd
 from bench.commands import check as check_cmd
 from bench.commands import list as list_cmd
+from bench.commands import one_line
 from bench.commands import report as report_cmd
 from bench.commands import run as run_cmd
 from bench.commands import simplify as simplify_cmd
@@ -38,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    print(f"bench: warning: {message}", file=sys.stderr)
+    print(f"bench: warning: {one_line(message)}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     except BenchError as exc:
         if args.debug:
             traceback.print_exception(exc)
-        print(f"bench: error: {exc}", file=sys.stderr)
+        print(f"bench: error: {one_line(exc)}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print("bench: interrupted", file=sys.stderr)

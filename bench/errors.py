@@ -53,3 +53,7 @@ class RenderError(BenchError, RuntimeError):
 
 class MeshWarning(UserWarning):
     """Something about an input mesh the user should know, which did not stop us."""
+
+
+class RecordWarning(UserWarning):
+    """A record, or an image it names, that a report or table left out (and why)."""

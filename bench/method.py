@@ -36,8 +36,8 @@ from bench.errors import BenchError, InputError, MethodError, ParamError
 from bench.mesh import Mesh
 from bench.registry import suggest
 
-__all__ = ["Method", "SimplifyResult", "parse_params", "run_method", "target_tolerance",
-           "resolve_target"]
+__all__ = ["Method", "SimplifyResult", "canonical_params", "parse_params", "resolve_target",
+           "run_method", "target_tolerance"]
 
 
 @dataclass
@@ -174,6 +174,22 @@ def parse_params(params_cls: type, items: list[str] | None) -> Any:
             raise ParamError(f"unknown parameter '{key}'{hint} (accepted: {known})")
         values[key] = _convert(key, raw.strip(), hints[key])
     return params_cls(**values)
+
+
+def canonical_params(params_cls: type, params: dict) -> dict:
+    """``params`` (name -> value as text or as typed) as one job of the method holds them:
+    each value converted by its field's type, and those equal to the default left out.
+
+    So ``qualitythr=0.50`` and ``qualitythr=0.5`` are one job, and ``qualitythr=0.3``
+    when 0.3 is the default is the method with no parameters: the same record, the same
+    label in results.csv and the report. Raises :class:`ParamError` as
+    :func:`parse_params` does.
+    """
+    items = [f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in params.items()]
+    parsed, defaults = parse_params(params_cls, items), params_cls()
+    given = {str(k).strip().replace("-", "_") for k in params}
+    return {f.name: getattr(parsed, f.name) for f in dataclasses.fields(params_cls)
+            if f.name in given and getattr(parsed, f.name) != getattr(defaults, f.name)}
 
 
 def _convert(key: str, raw: str, kind):

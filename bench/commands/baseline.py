@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
+from bench.errors import InputError
 from bench.harness.check import make_baseline
-from bench.harness.results import load_records
+from bench.harness.results import load_records, write_atomic
 
 
 def add_parser(sub, name: str) -> None:
@@ -19,7 +21,18 @@ def add_parser(sub, name: str) -> None:
 
 def run(args) -> int:
     baseline = make_baseline(load_records(Path(args.run_dir)))
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(baseline, indent=1, sort_keys=True) + "\n")
-    print(f"bench: wrote {args.out} ({len(baseline['entries'])} jobs)", file=sys.stderr)
+    if not baseline["entries"]:
+        raise InputError(f"{args.run_dir}: no records to make a baseline of")
+    for key, entry in baseline["entries"].items():  # a NaN baseline would gate nothing
+        for metric, value in entry["metrics"].items():
+            if not math.isfinite(value):
+                raise InputError(f"{args.run_dir}: job '{key}' has {metric} = {value}; a "
+                                 "baseline needs finite values (re-run that job)")
+    out = Path(args.out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(out, json.dumps(baseline, indent=1, sort_keys=True) + "\n")
+    except OSError as exc:
+        raise InputError(f"{out}: cannot write the baseline ({exc.strerror or exc})") from None
+    print(f"bench: wrote {out} ({len(baseline['entries'])} jobs)", file=sys.stderr)
     return 0

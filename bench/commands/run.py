@@ -3,15 +3,17 @@ result under the protocol, and write records, results.csv and an HTML report to 
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import sys
 from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.harness.runner import EXECUTORS, execute, plan, remaining
+from bench.harness.runner import EXECUTORS, execute, method_label, plan, remaining
 from bench.harness.suites import evaluation_protocols, get_suite
-from bench.method import parse_params, resolve_target
+from bench.method import canonical_params, resolve_target
 from bench.models import resolve_model
 from bench.registry import registry
 
@@ -35,9 +37,9 @@ def add_parser(sub, name: str) -> None:
     p.add_argument("--suite", help="a named experiment (sets models, methods, budgets and "
                    "evaluation protocols; the options above override them)")
     p.add_argument("--out", help="run directory (default: reports/run-YYYYmmdd-HHMMSS)")
-    p.add_argument("--jobs", "-j", type=int, default=os.cpu_count() or 1,
-                   help="worker processes, here or in the LocalCluster of --executor dask "
-                   "without --scheduler (default: CPU count)")
+    p.add_argument("--jobs", "-j", default=str(os.cpu_count() or 1), metavar="N",
+                   help="worker processes, at least 1, here or in the LocalCluster of "
+                   "--executor dask without --scheduler (default: CPU count)")
     p.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="what runs the jobs: a pool of processes here (local, the default) "
                    "or a Dask cluster (dask; README, 'Running on a cluster')")
@@ -45,7 +47,8 @@ def add_parser(sub, name: str) -> None:
                    help="a running Dask scheduler, e.g. tcp://HOST:8786 (with --executor "
                    "dask; without it a LocalCluster of --jobs workers is started)")
     p.add_argument("--resume", action="store_true", help="skip jobs whose record exists in DIR")
-    p.add_argument("--timeout", type=float, default=900.0, help="seconds per job (default 900)")
+    p.add_argument("--timeout", default="900", metavar="S",
+                   help="seconds per job, finite and above 0 (default 900)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML report")
     p.set_defaults(run=run)
 
@@ -55,7 +58,11 @@ def _split(text: str | None) -> list[str]:
 
 
 def parse_variants(text: str | None) -> list[tuple[str, dict]]:
-    """'a,b[x=1,y=2]' -> [('a', {}), ('b', {'x': '1', 'y': '2'})] (brackets may hold commas)."""
+    """'a,b[x=1,y=2]' -> [('a', {}), ('b', {'x': '1', 'y': '2'})] (brackets may hold commas).
+
+    An unclosed or unmatched bracket is an error, not a variant that swallows the rest of
+    the list.
+    """
     variants, depth, current = [], 0, ""
     for ch in (text or "") + ",":
         if ch == "," and depth == 0:
@@ -63,14 +70,22 @@ def parse_variants(text: str | None) -> list[tuple[str, dict]]:
                 variants.append(current.strip())
             current = ""
             continue
-        depth += ch == "["
-        depth -= ch == "]"
+        depth += (ch == "[") - (ch == "]")
+        if depth not in (0, 1):
+            raise InputError(f"--methods: {'unmatched ]' if depth < 0 else 'nested ['} in "
+                             f"{(current + ch).strip()!r}; parameters are written "
+                             "NAME[key=value,...]")
         current += ch
+    if depth:
+        raise InputError(f"--methods: '[' not closed in {current.rstrip(',').strip()!r}; "
+                         "parameters are written NAME[key=value,...]")
     out = []
     for v in variants:
-        name, _, rest = v.partition("[")
+        name, bracket, rest = v.partition("[")
+        if not name.strip() or (bracket and not rest.endswith("]")):
+            raise InputError(f"--methods {v!r}: parameters are written NAME[key=value,...]")
         params = {}
-        for item in _split(rest.rstrip("]")):
+        for item in _split(rest[:-1]):
             key, sep, value = item.partition("=")
             if not sep:
                 raise InputError(f"--methods {v!r}: parameters are written NAME[key=value,...]")
@@ -79,12 +94,63 @@ def parse_variants(text: str | None) -> list[tuple[str, dict]]:
     return out
 
 
+def _whole(text: str, option: str) -> int:
+    """A positive whole number given on the command line (no sign, point or exponent)."""
+    if not re.fullmatch(r"\s*[0-9]+\s*", text) or int(text) < 1:
+        raise InputError(f"{option} must be a whole number of at least 1, got {text!r}")
+    return int(text)
+
+
+def _seconds(text: str, option: str) -> float:
+    """A finite number of seconds above 0 (NaN would never time out, 0 or less at once)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{option} must be a number of seconds above 0, got {text!r}")
+    return value
+
+
+def _ratio(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 < value <= 1:  # NaN fails too
+        raise InputError(f"--ratios: each must be a fraction in (0, 1], got {text!r}")
+    return value
+
+
+def _budgets(text: str | None, option: str, parse) -> list:
+    if text is None:
+        return []
+    values = [parse(t) for t in _split(text)]
+    if not values:
+        raise InputError(f"{option}: no budget given in {text!r}")
+    return values
+
+
+def _check_out(out: Path) -> None:
+    """Fail before any work when the run directory cannot be made or written."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: exists and is not a directory")
+    existing = next(p for p in (out, *out.absolute().parents) if p.exists())
+    if not existing.is_dir():
+        raise InputError(f"--out {out}: {existing} is not a directory")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"--out {out}: {existing} is not writable")
+
+
 def run(args) -> int:
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler is the address of a Dask scheduler: it needs "
                          "--executor dask")
-    if args.jobs < 1:
-        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    workers, timeout = _whole(args.jobs, "--jobs"), _seconds(args.timeout, "--timeout")
+    faces = _budgets(args.faces, "--faces", lambda t: _whole(t, "--faces"))
+    ratios = _budgets(args.ratios, "--ratios", _ratio)
+    out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
+    _check_out(out)
     suite = get_suite(args.suite) if args.suite else None
     models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
     methods = registry("method")
@@ -94,38 +160,48 @@ def run(args) -> int:
         variants = list(suite.variants)
     else:
         variants = [(e.name, {}) for e in methods if e.available]
-    for name, params in variants:  # fail on typos before any work starts
-        parse_params(methods.load(name).Params, [f"{k}={v}" for k, v in params.items()])
+    distinct = {}  # fail on typos before any work starts; one variant per distinct job
+    for name, params in variants:
+        params = canonical_params(methods.load(name).Params, params)
+        distinct.setdefault(method_label(name, params), (name, params))
+    variants = list(distinct.values())
 
     meshes = {m: resolve_model(m) for m in models}
     if not args.methods and not (suite and suite.variants is not None):
         print(_default_methods_line(methods, [n for n, _ in variants], meshes), file=sys.stderr)
     budgets = {}
     for m, mesh in meshes.items():
-        if args.faces:
-            budgets[m] = [resolve_target(mesh.n_faces, faces=int(f)) for f in _split(args.faces)]
+        if faces:
+            budgets[m] = [resolve_target(mesh.n_faces, faces=f) for f in faces]
         elif suite and m in suite.faces:
             budgets[m] = list(suite.faces[m])
         else:
-            ratios = [float(r) for r in _split(args.ratios)] or list(
-                suite.ratios if suite and suite.ratios else DEFAULT_RATIOS)
-            budgets[m] = [resolve_target(mesh.n_faces, ratio=r) for r in ratios]
+            budgets[m] = [resolve_target(mesh.n_faces, ratio=r) for r in ratios or (
+                suite.ratios if suite and suite.ratios else DEFAULT_RATIOS)]
 
     protocols = evaluation_protocols(suite, args.shading, args.specular)
-    out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
     jobs = plan(models, variants, budgets, protocols)
     if args.resume:
         jobs = remaining(jobs, out)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot create it ({exc.strerror or exc})") from None
     shadings = " x " + "/".join(
         p.shading + ("+specular" if p.specular else "") for p in protocols) + " shading"
     where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
-             f"with {args.jobs} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
+             f"with {workers} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
                                             else ""))
     print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets"
           f"{shadings}) {where} -> {out}", file=sys.stderr)
-    execute(jobs, out, workers=args.jobs, timeout=args.timeout, executor=args.executor,
-            scheduler=args.scheduler)
+    try:
+        execute(jobs, out, workers=workers, timeout=timeout, executor=args.executor,
+                scheduler=args.scheduler)
+    except KeyboardInterrupt:  # every finished job's record is already on disk
+        kept = len(list((out / "records").glob("*.json")))
+        print(f"bench: interrupted; {kept} records kept in {out}; --resume continues",
+              file=sys.stderr)
+        return 130
     return finish(out, build_report=not args.no_report)
 
 
@@ -142,12 +218,31 @@ def _default_methods_line(methods, names: list[str], meshes: dict) -> str:
 
 
 def finish(out: Path, build_report: bool = True) -> int:
-    """Write results.csv (and the report) from every record in ``out``; print a summary."""
+    """Write results.csv (and the report) from every record in ``out``; print a summary.
+
+    A record that cannot be used (damaged, or not a record) is left out with a warning
+    and a note in the report, so one bad file does not hide the rest of a run. The
+    summary printed comes from records that may be someone else's: its text is shown
+    with control characters escaped.
+    """
+    import warnings
+
+    from bench.commands import one_line
+    from bench.errors import RecordWarning
     from bench.harness.results import load_records, records_table, write_table
 
-    records = load_records(out)
-    csv = write_table(out, records)
+    skipped = []
+    records = load_records(out, skipped=skipped)
+    for note in skipped:
+        warnings.warn(note, RecordWarning, stacklevel=2)
+    written = [_writing(out / "results.csv", lambda: write_table(out, records))]
+    if build_report:  # every file is written before anything is said about the run
+        from bench.harness.report import write_report
+
+        written.append(_writing(out / "index.html", lambda: write_report(out, records, skipped)))
     table = records_table(records)
+    for column in ("model", "method", "status"):
+        table[column] = table[column].map(one_line)
     cols = ["model", "method", "target_faces", "faces", "d_rms", "hausdorff_mean",
             "seam_cracks", "seconds", "status"]
     if table.shading.nunique() > 1:
@@ -156,16 +251,22 @@ def finish(out: Path, build_report: bool = True) -> int:
         cols.insert(cols.index("seconds"), "exterior_share")
     with_pd_options(lambda: print(table[cols].to_string(index=False)))
     failed = table[table.status == "failed"]
-    print(f"bench: wrote {csv}", file=sys.stderr)
-    if build_report:
-        from bench.harness.report import write_report
-
-        print(f"bench: wrote {write_report(out, records)}", file=sys.stderr)
+    for path in written:
+        print(f"bench: wrote {path}", file=sys.stderr)
     if len(failed):
         print(f"bench: {len(failed)} of {len(table)} jobs failed (see the report or "
               f"{out}/records)", file=sys.stderr)
         return 1
     return 0
+
+
+def _writing(path: Path, write):
+    """``write()``, with a file-system error (a read-only run folder, ``index.html`` made
+    a directory) as a one-line error naming ``path``."""
+    try:
+        return write()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write it ({exc.strerror or exc})") from None
 
 
 def with_pd_options(fn):

@@ -6,30 +6,46 @@ direction by more than ``tolerance × |baseline|`` (plus 1e-12, so 0 → 1 crack
 
 Marks: ``worse``, ``better``, ``same``, ``newly failing`` (baseline ok, now failed),
 ``fixed`` (baseline failed, now ok), ``not comparable`` (method or protocol version
-changed, so numbers cannot be compared), ``missing`` (in the baseline, not in the run),
-``new`` (in the run only). ``worse``, ``newly failing`` and ``missing`` fail the check.
+changed, so numbers cannot be compared), ``not finite`` (NaN or infinite on either side:
+no comparison with it can be trusted, and NaN compares false both ways, so it would pass
+for ``same``), ``missing`` (in the baseline, not in the run), ``new`` (in the run only).
+``worse``, ``not finite``, ``newly failing`` and ``missing`` fail the check. The
+tolerance must be finite and at least 0: NaN or infinity would let any change pass, and
+a negative one would fail identical values.
+
+The protocol never records NaN (an undefined metric is left out of the record), so a NaN
+in a record or a baseline is damage or a plug-in's bug, and a baseline file is checked
+by shape (:func:`load_baseline`) before it gates anything.
 
 A metric registered by a third-party package is checked like a built-in one, by its own
 ``higher_is_better``. A metric that raised in an ok job (its value missing, its error in
 the record's ``metric_errors``) is ``newly failing`` where the baseline has a value.
 Metrics of the run that the baseline lacks (a newly registered metric) are not compared:
 make a new baseline to gate them.
+
+Jobs are matched by ``model | method label | target faces | evaluation shading``, never
+by the record's file name. Labels are compared in their canonical form
+(:func:`canonical_label`), as ``bench run`` writes them now: a baseline written when
+explicit defaults stayed in the label (``image-driven[interior_views=0]``) or values kept
+their typed form (``qualitythr=0.50``) matches the same job of a current run.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.errors import InputError
+from bench.errors import BenchError, InputError
 
-__all__ = ["BASELINE_SCHEMA", "make_baseline", "compare", "FAILING_MARKS", "metric_directions"]
+__all__ = ["BASELINE_SCHEMA", "FAILING_MARKS", "baseline_problem", "canonical_label",
+           "check_tolerance", "compare", "load_baseline", "make_baseline", "metric_directions"]
 
 BASELINE_SCHEMA = 1
-FAILING_MARKS = ("worse", "newly failing", "missing")
+FAILING_MARKS = ("worse", "not finite", "newly failing", "missing")
 
 
 def metric_directions() -> dict[str, bool]:
@@ -48,14 +64,51 @@ def metric_directions() -> dict[str, bool]:
 def _key(model: str, label: str, target: int, shading: str) -> str:
     """``model | method | target | shading``; the shading is the evaluation's, with
     ``-spec`` when specular was on (:func:`bench.harness.results.shading_label`)."""
-    return f"{model} | {label} | {target} | {shading}"
+    return f"{model} | {canonical_label(label)} | {target} | {shading}"
+
+
+@functools.cache
+def canonical_label(label: str) -> str:
+    """``name[key=value,...]`` with its parameters as a job holds them now
+    (:func:`bench.method.canonical_params`: defaults left out, values in their shortest
+    form); the label unchanged when it does not parse or its method is not installed."""
+    from bench.harness.runner import method_label
+    from bench.method import canonical_params
+    from bench.registry import registry
+
+    name, bracket, rest = label.partition("[")
+    if not bracket or not rest.endswith("]"):
+        return label
+    params = {}
+    for item in rest[:-1].split(","):
+        key, sep, value = item.partition("=")
+        if not sep:
+            return label
+        params[key] = value
+    try:
+        return method_label(name, canonical_params(registry("method").load(name).Params, params))
+    except (BenchError, ImportError):
+        return label
+
+
+def _canonical_entries(entries: dict) -> dict:
+    """``entries`` keyed by :func:`_key` of their parsed key (a baseline's own keys may
+    predate canonical labels)."""
+    out = {}
+    for key, entry in entries.items():
+        parts = key.split(" | ")
+        if len(parts) == 4:
+            key = " | ".join([parts[0], canonical_label(parts[1]), *parts[2:]])
+        out.setdefault(key, entry)
+    return out
 
 
 def make_baseline(records: list[dict]) -> dict:
     """The comparable essence of a run: status, versions and directed metrics per job.
 
-    Metrics that are missing or not finite (NaN: undefined for that model) are left out,
-    so they can be neither a regression nor an improvement.
+    Metrics that are missing (undefined for that model) are left out, so they can be
+    neither a regression nor an improvement; a NaN or infinite value is kept, for
+    :func:`compare` to mark ``not finite``.
     """
     from bench.harness.results import shading_label
 
@@ -70,7 +123,7 @@ def make_baseline(records: list[dict]) -> dict:
             "status": r["status"],
             "method_version": (r.get("method") or {}).get("version"),
             "protocol_version": job["protocol"]["version"],
-            "metrics": {k: metrics[k] for k in directions if _finite(metrics.get(k))},
+            "metrics": {k: metrics[k] for k in directions if _number(metrics.get(k))},
         }
         errors = {k: v for k, v in (r.get("metric_errors") or {}).items() if k in directions}
         if errors:  # metrics that raised in an ok job (metrics.protocol.evaluate)
@@ -78,21 +131,83 @@ def make_baseline(records: list[dict]) -> dict:
     return {"schema": BASELINE_SCHEMA, "entries": dict(sorted(entries.items()))}
 
 
+def _number(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def _finite(value) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool) and \
-        math.isfinite(value)
+    return _number(value) and math.isfinite(value)
+
+
+def check_tolerance(tolerance) -> float:
+    """``tolerance`` as a float; :class:`InputError` unless it is finite and >= 0."""
+    try:
+        value = float(tolerance)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise InputError(f"--tolerance must be a finite number >= 0 (a fraction, e.g. 0.02), "
+                         f"got {tolerance!r}")
+    return value
 
 
 def load_baseline(path: Path) -> dict:
+    """The baseline in ``path``; :class:`InputError` with a one-line reason when it is not
+    readable JSON or not a baseline (:func:`baseline_problem`)."""
     try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: cannot read baseline ({exc}); create one with "
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError) as exc:  # ValueError: JSON, UTF-8
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"{path}: cannot read baseline ({reason}); create one with "
                          "bench baseline DIR --out FILE") from None
-    if data.get("schema") != BASELINE_SCHEMA:
-        raise InputError(f"{path}: baseline schema {data.get('schema')!r} is not "
+    schema = data.get("schema") if isinstance(data, dict) else None
+    if isinstance(data, dict) and schema != BASELINE_SCHEMA:
+        raise InputError(f"{path}: baseline schema {schema!r} is not "
                          f"{BASELINE_SCHEMA}; regenerate it with bench baseline")
+    problem = baseline_problem(data)
+    if problem:
+        raise InputError(f"{path}: not a baseline: {problem}; create one with "
+                         "bench baseline DIR --out FILE")
     return data
+
+
+def baseline_problem(data) -> str | None:
+    """Why ``data`` is not a baseline :func:`compare` can use (one line), or None. An
+    empty one is refused too: it would pass every run."""
+    from bench.harness.results import STATUSES
+
+    if not isinstance(data, dict):
+        return f"expected a JSON object, got {type(data).__name__}"
+    entries = data.get("entries")
+    if not isinstance(entries, dict):
+        return "no 'entries' object"
+    if not entries:
+        return "'entries' is empty (it would pass any run)"
+    for key, entry in entries.items():
+        where = f"entry {_show(key)}"
+        if not isinstance(entry, dict):
+            return f"{where} is not an object"
+        if entry.get("status") not in STATUSES:
+            return f"{where}: 'status' is {_show(entry.get('status'))}"
+        for name in ("method_version", "protocol_version"):
+            if not isinstance(entry.get(name), (str, int, type(None))) or \
+                    isinstance(entry.get(name), bool):
+                return f"{where}: '{name}' is {_show(entry.get(name))}"
+        metrics = entry.get("metrics")
+        if not isinstance(metrics, dict):
+            return f"{where}: no 'metrics' object"
+        for name, value in metrics.items():
+            if not _number(value):
+                return f"{where}: metric {_show(name)} is {_show(value)}, not a number"
+        errors = entry.get("metric_errors", {})
+        if not isinstance(errors, dict) or not all(isinstance(v, str) for v in errors.values()):
+            return f"{where}: 'metric_errors' is not an object of strings"
+    return None
+
+
+def _show(value, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 @dataclass
@@ -106,9 +221,11 @@ class Row:
 
 def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]:
     """Rows of (job, metric, baseline, current, mark) for every job and metric."""
+    tolerance = check_tolerance(tolerance)
     directions = metric_directions()
     rows = []
-    old_all, new_all = baseline["entries"], current["entries"]
+    old_all = _canonical_entries(baseline["entries"])
+    new_all = _canonical_entries(current["entries"])
     for key in sorted(set(old_all) | set(new_all)):
         old, new = old_all.get(key), new_all.get(key)
         if new is None:
@@ -132,8 +249,11 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
         for metric, before in old["metrics"].items():
             after = new["metrics"].get(metric)
             if after is None and metric in new.get("metric_errors", {}):
-                error = new["metric_errors"][metric].splitlines()[0]
+                error = (new["metric_errors"][metric].splitlines() or [""])[0]
                 rows.append(Row(key, metric, before, error[:60], "newly failing"))
+                continue
+            if not _finite(before) or (after is not None and not _finite(after)):
+                rows.append(Row(key, metric, before, after, "not finite"))
                 continue
             if after is None or metric not in directions:
                 rows.append(Row(key, metric, before, after, "not comparable"))

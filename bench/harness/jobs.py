@@ -44,6 +44,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
+from bench.harness.keys import job_key
 from bench.harness.results import SCHEMA_VERSION, write_file, write_record
 from metrics.protocol import Protocol
 
@@ -86,16 +87,14 @@ class Job:
 
     @property
     def key(self) -> str:
-        """File-name stem of this job's record."""
-        model = _slug(Path(self.model).stem if os.sep in self.model else self.model)
-        return (f"{model}__{_slug(self.label)}__{self.target_faces}"
-                f"__{self.protocol.shading}{'-spec' if self.protocol.specular else ''}"
-                f"-p{self.protocol.version}")
+        """File-name stem of this job's record: unique, readable, stable (bench.harness.keys)."""
+        return job_key(self.model, self.method, self.label, self.params, self.target_faces,
+                       self.protocol)
 
     def as_dict(self) -> dict:
         return {"model": self.model, "method": self.method, "params": dict(self.params),
                 "label": self.label, "target_faces": self.target_faces,
-                "protocol": self.protocol.as_dict()}
+                "protocol": self.protocol.as_dict(), "key": self.key}
 
 
 def plan(models: list[str], variants: list[tuple[str, dict]], budgets: dict[str, list[int]],

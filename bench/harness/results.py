@@ -19,21 +19,34 @@ only complete records and ``--resume`` can trust what it finds. A job's images a
 written (atomically too) before its record, so a record also means its images exist.
 A record of a newer schema is refused; older ones would be migrated by
 :func:`load_record`.
+
+A run folder may come from someone else (a CI artifact, a colleague's study), so every
+record is untrusted input: :func:`load_record` checks its shape and the types of the
+fields the table, the gate and the report read (:func:`record_problem`) and refuses
+anything else with a one-line reason, and :func:`load_records` reads only files inside
+the run folder's ``records/``. ``results.csv`` is written atomically too.
 """
 
 from __future__ import annotations
 
 import json
+import numbers
 import os
-import tempfile
+import secrets
+import typing
+from dataclasses import fields
 from pathlib import Path
 
 from bench.errors import InputError
 
-__all__ = ["CSV_COLUMNS", "SCHEMA_VERSION", "load_record", "load_records", "metric_columns",
-           "records_table", "shading_label", "write_file", "write_record", "write_table"]
+__all__ = ["CSV_COLUMNS", "SCHEMA_VERSION", "STATUSES", "load_record", "load_records",
+           "metric_columns", "record_problem", "records_table", "shading_label", "write_atomic",
+           "write_file", "write_record", "write_table"]
 
 SCHEMA_VERSION = 1
+
+#: The statuses a record can have.
+STATUSES = ("ok", "failed", "skipped")
 
 #: The leading columns of results.csv, in order (DESIGN "Results"; issue "runner").
 #: ``shading`` is the evaluation shading (:func:`shading_label`); ``exterior_share`` is
@@ -58,21 +71,36 @@ def write_record(path: Path, record: dict, sort_keys: bool = True) -> Path:
     order they were built (the LOD sidecar of ``bench simplify``).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(record, f, indent=1, sort_keys=sort_keys, default=_jsonable)
-    os.replace(tmp, path)
-    return path
+    return write_atomic(path, json.dumps(record, indent=1, sort_keys=sort_keys,
+                                         default=_jsonable))
 
 
 def write_file(path: Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file in the same folder + rename),
-    so a reader never sees half a file, whoever else writes the same path."""
+    """Write ``data`` to ``path`` atomically, making its folder if needed, so a reader
+    never sees half a file, whoever else writes the same path."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
+    return write_atomic(path, data)
+
+
+def write_atomic(path: Path, data: str | bytes) -> Path:
+    """Write ``data`` (text as UTF-8) to ``path`` through a temporary file in the same
+    folder and a rename, so a reader (the report, ``--resume``, a browser) sees the old
+    file or the new one, never half of one. The temporary file is opened normally (not
+    by ``mkstemp``, which makes it 0600), so the result gets the permissions the umask
+    gives any new file."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    try:
+        if isinstance(data, str):
+            with open(tmp, "x", encoding="utf-8") as f:
+                f.write(data)
+        else:
+            with open(tmp, "xb") as f:
+                f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -87,27 +115,206 @@ def _jsonable(value):
 
 
 def load_record(path: Path) -> dict:
+    """The record in ``path``; :class:`InputError` with a one-line reason when the file is
+    not readable JSON or not a record this bench can use (:func:`record_problem`)."""
     try:
-        record = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: not a readable result record ({exc})") from None
-    schema = record.get("schema")
-    if not isinstance(schema, int) or schema > SCHEMA_VERSION:
+        record = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError) as exc:  # ValueError: JSON, UTF-8
+        raise InputError(f"{path}: not a readable result record "
+                         f"({_one_line(exc) or type(exc).__name__})") from None
+    schema = record.get("schema") if isinstance(record, dict) else None
+    if isinstance(schema, int) and not isinstance(schema, bool) and schema > SCHEMA_VERSION:
         raise InputError(f"{path}: result schema {schema!r} is newer than this bench "
                          f"understands ({SCHEMA_VERSION}); upgrade bench")
+    problem = record_problem(record)
+    if problem:
+        raise InputError(f"{path}: not a result record: {problem}")
     return record
 
 
-def load_records(run_dir: Path) -> list[dict]:
-    """All records under ``run_dir/records``, sorted by model, method, budget."""
+def load_records(run_dir: Path, skipped: list[str] | None = None) -> list[dict]:
+    """All records under ``run_dir/records``, sorted by model, method, budget.
+
+    A bad record (unreadable, malformed, or a link to a file outside the run folder)
+    raises :class:`InputError`, unless ``skipped`` is a list: then its one-line reason is
+    appended there and the other records are returned, so that one damaged file does not
+    hide a whole run from its report.
+    """
     folder = Path(run_dir) / "records"
     if not folder.is_dir():
         raise InputError(f"{run_dir}: not a run directory (no records/ inside); "
                          "create one with bench run --out DIR")
-    records = [load_record(p) for p in sorted(folder.glob("*.json"))]
+    inside = folder.resolve()
+    records = []
+    for path in sorted(folder.glob("*.json")):
+        try:
+            if not path.resolve().is_relative_to(inside):
+                raise InputError(f"{path}: links outside the run folder; not read")
+            records.append(load_record(path))
+        except InputError as exc:
+            if skipped is None:
+                raise
+            skipped.append(str(exc))
     return sorted(records, key=lambda r: (r["job"]["model"], r["job"]["label"],
                                           -r["job"]["target_faces"],
                                           shading_label(r["job"]["protocol"])))
+
+
+def record_problem(record) -> str | None:
+    """Why ``record`` is not a usable result record (one line), or None.
+
+    Checks what :func:`records_table`, the gate (:mod:`bench.harness.check`) and the
+    report read: the job's identity and protocol, the status, and the types of the
+    metrics, per-view values, histogram, statistics, artifacts and errors. Strings are
+    not judged by content (the report escapes them); numbers must be numbers, so no
+    later format or comparison can fail on a string where a number belongs.
+    """
+    if not isinstance(record, dict):
+        return f"expected a JSON object, got {_kind(record)}"
+    schema = record.get("schema")
+    if not _is_int(schema) or schema < 1:
+        return f"'schema' must be a positive integer, got {_show(schema)}"
+    if record.get("status") not in STATUSES:
+        return (f"'status' must be one of {', '.join(STATUSES)}, "
+                f"got {_show(record.get('status'))}")
+    job = record.get("job")
+    if not isinstance(job, dict):
+        return f"'job' must be an object, got {_kind(job)}"
+    for name in ("model", "method", "label"):
+        if not isinstance(job.get(name), str) or not job[name]:
+            return f"'job.{name}' must be a non-empty string, got {_show(job.get(name))}"
+    if not _is_int(job.get("target_faces")) or job["target_faces"] < 1:
+        return f"'job.target_faces' must be a positive integer, got {_show(job.get('target_faces'))}"
+    if not isinstance(job.get("params", {}), dict):
+        return f"'job.params' must be an object, got {_kind(job['params'])}"
+    if "key" in job and not isinstance(job["key"], str):
+        return f"'job.key' must be a string, got {_kind(job['key'])}"
+    problem = _protocol_problem(job.get("protocol"))
+    if problem:
+        return problem
+    if record.get("error") is not None and not isinstance(record["error"], str):
+        return f"'error' must be a string or null, got {_kind(record['error'])}"
+    ok = record["status"] == "ok"
+    for name, check in _PARTS.items():
+        value = record.get(name)
+        if value is None:
+            if ok and name in _NEEDED_IF_OK:
+                return f"an ok record needs '{name}'"
+            continue
+        problem = check(value)
+        if problem:
+            return f"'{name}' {problem}"
+    return None
+
+
+def _protocol_problem(protocol) -> str | None:
+    """Every field of :class:`~metrics.protocol.Protocol`, of its type, and no other."""
+    from metrics.protocol import Protocol
+
+    if not isinstance(protocol, dict):
+        return f"'job.protocol' must be an object, got {_kind(protocol)}"
+    hints = typing.get_type_hints(Protocol)
+    names = [f.name for f in fields(Protocol)]
+    unknown = sorted(set(protocol) - set(names), key=str)
+    if unknown:
+        return f"'job.protocol' has unknown field {_show(unknown[0])}"
+    for name in names:
+        if name not in protocol:
+            return f"'job.protocol' lacks '{name}'"
+        value, kind = protocol[name], hints[name]
+        if typing.get_origin(kind) is typing.Literal:
+            good = value in typing.get_args(kind)
+        elif kind is bool:
+            good = isinstance(value, bool)
+        elif kind is int:
+            good = _is_int(value) and value > 0
+        else:
+            good = isinstance(value, kind)
+        if not good:
+            return f"'job.protocol.{name}' is {_show(value)}, not a valid {name}"
+    return None
+
+
+def _numbers_or_null(values: dict) -> str | None:
+    if not isinstance(values, dict):
+        return f"must be an object, got {_kind(values)}"
+    for name, value in values.items():
+        if value is not None and not _is_number(value):
+            return f"has {_show(name)} = {_show(value)}, not a number"
+    return None
+
+
+def _number_lists(values: dict) -> str | None:
+    if not isinstance(values, dict):
+        return f"must be an object, got {_kind(values)}"
+    for name, series in values.items():
+        if series is not None and not _number_list(series):
+            return f"has {_show(name)} that is not a list of numbers"
+    return None
+
+
+def _number_list(values) -> bool:
+    return isinstance(values, list) and all(_is_number(v) for v in values)
+
+
+def _model_part(model) -> str | None:
+    if not isinstance(model, dict):
+        return f"must be an object, got {_kind(model)}"
+    digest = model.get("hash")
+    if digest is not None and not (isinstance(digest, str) and digest and
+                                   all(c in "0123456789abcdef" for c in digest)):
+        return f"has a 'hash' that is not hexadecimal: {_show(digest)}"
+    if model.get("faces") is not None and not _is_int(model["faces"]):
+        return f"has 'faces' = {_show(model['faces'])}, not an integer"
+    return None
+
+
+def _strings(values) -> str | None:
+    if not isinstance(values, dict) or not all(isinstance(v, str) for v in values.values()):
+        return "must be an object of strings"
+    return None
+
+
+#: Optional parts of a record and their checks (a message fragment, or None when fine).
+_PARTS = {
+    "model": _model_part,
+    "method": lambda v: None if isinstance(v, dict) else f"must be an object, got {_kind(v)}",
+    "metrics": _numbers_or_null,
+    "per_view": _number_lists,
+    "silhouette_histogram": lambda v: None if _number_list(v) else "must be a list of numbers",
+    "stats": lambda v: None if isinstance(v, dict) else f"must be an object, got {_kind(v)}",
+    "seconds": lambda v: None if isinstance(v, dict) else f"must be an object, got {_kind(v)}",
+    "artifacts": lambda v: None if isinstance(v, list) else f"must be a list, got {_kind(v)}",
+    "metric_errors": _strings,
+    "stop_reason": lambda v: None if isinstance(v, str) else f"must be a string, got {_kind(v)}",
+}
+#: What the report shows of every ok job.
+_NEEDED_IF_OK = ("model", "metrics")
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value) -> bool:
+    """A JSON number (NaN and infinities included: the gate flags them)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _kind(value) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean",
+            type(None): "null"}.get(type(value), "a number")
+
+
+def _show(value, limit: int = 60) -> str:
+    """``value`` for a one-line message: repr (so control characters and newlines are
+    escaped, never printed) and cut to ``limit`` characters."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
 
 
 def metric_columns(records: list[dict]) -> list[str]:
@@ -144,6 +351,7 @@ def records_table(records: list[dict]):
 
 
 def write_table(run_dir: Path, records: list[dict]) -> Path:
-    path = Path(run_dir) / "results.csv"
-    records_table(records).to_csv(path, index=False, float_format="%.6g")
-    return path
+    """Write ``run_dir/results.csv`` (atomically: a spreadsheet open on it, or a second
+    ``bench report``, never sees half a table)."""
+    text = records_table(records).to_csv(index=False, float_format="%.6g")
+    return write_atomic(Path(run_dir) / "results.csv", text)
