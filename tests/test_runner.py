@@ -46,8 +46,10 @@ def _bench(*args, cwd, check=None):
 def run(tmp_path_factory):
     root = tmp_path_factory.mktemp("runner")
     save_mesh(icosphere(2, name="ico"), root / "ico.obj")  # 320 faces
+    # the timeout bounds a whole job (warm-up, method, evaluation): qslim's take a few
+    # seconds on a quiet machine and more than 20 on a busy one, so the bound is 60 s
     proc = _bench("run", "--models", "ico.obj", "--methods", "qslim,crash,hang,raise",
-                  "--faces", "100,60", "--timeout", "20", "--jobs", "2", "--out", "out",
+                  "--faces", "100,60", "--timeout", "60", "--jobs", "2", "--out", "out",
                   cwd=root)
     return root, proc
 
@@ -63,13 +65,13 @@ def _records(out: Path) -> dict:
 def test_failures_are_isolated(run):
     root, proc = run
     assert proc.returncode == 1  # some jobs failed, and the run says so
-    assert "6 of 8 jobs failed" in proc.stderr
     records = _records(root / "out")
+    assert "6 of 8 jobs failed" in proc.stderr, {k: r["error"] for k, r in records.items()}
     assert len(records) == 8
     for faces in (100, 60):
         assert records[("qslim", faces)]["status"] == "ok"
         assert "died (exit code 139)" in records[("crash", faces)]["error"]
-        assert "timed out after 20 s" in records[("hang", faces)]["error"]
+        assert "timed out after 60 s" in records[("hang", faces)]["error"]
         assert "deliberate failure" in records[("raise", faces)]["error"]
 
 
