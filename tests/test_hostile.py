@@ -29,6 +29,7 @@ from pathlib import Path
 
 import pytest
 
+from bench.harness.report import SCRIPT as PAGE_SCRIPT
 from bench.io.meshio import save_mesh
 from bench.mesh import Mesh
 from conftest import TET_FACES, TET_POSITIONS, icosphere
@@ -117,7 +118,10 @@ def run_folder(*records, extra: Callable[[Path], None] | None = None) -> Callabl
 
 
 def page_is_safe(folder: Path, proc) -> None:
+    """No script in the page but the report's own (once), no secret, no terminal escape."""
     page = (folder / "run" / "index.html").read_text()
+    assert page.count(PAGE_SCRIPT) == 1
+    page = page.replace(PAGE_SCRIPT, "")
     assert "<script" not in page.lower() and SECRET not in page
     assert "\x1b" not in proc.stdout
 

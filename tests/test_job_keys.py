@@ -135,5 +135,9 @@ def test_a_report_of_an_older_run_folder_finds_its_images(tmp_path):
     old = _record("qslim", 5.0)
     old["job"]["model"] = "A/mesh.obj"
     old["per_view"] = {"d_rms": [5.0] * 24}
-    page = write_report(tmp_path, [old]).read_text()
+    page = write_report(tmp_path, [old], single_file=True).read_text()
     assert base64.b64encode(buf.getvalue()).decode() in page
+    page = write_report(tmp_path, [old]).read_text()  # images as files: a thumbnail
+    key = folder.name
+    assert f"<a href='images/{key}/view00.png'><img src='images/thumbs/{key}/view00.jpg'" in page
+    assert (tmp_path / "images" / "thumbs" / key / "view00.jpg").is_file()

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from bench.errors import InputError
+from bench.harness.report import SCRIPT as PAGE_SCRIPT
 from bench.harness.report import write_report
 from bench.harness.results import load_records, write_record, write_table
 from metrics.protocol import Protocol
@@ -68,6 +69,13 @@ def secret(tmp_path) -> Path:
     return path
 
 
+def without_own_script(page: str) -> str:
+    """``page`` without the report's own script, which it must hold exactly once: what is
+    left may hold no script at all."""
+    assert page.count(PAGE_SCRIPT) == 1
+    return page.replace(PAGE_SCRIPT, "")
+
+
 def _warnings(proc) -> list[str]:
     assert "Traceback" not in proc.stderr
     return [line for line in proc.stderr.splitlines() if line.startswith("bench: warning:")]
@@ -81,7 +89,7 @@ def test_record_strings_are_escaped(tmp_path):
                                 "failed": failed, "partial": partial})
     proc = bench("report", run)
     assert proc.returncode == 0, proc.stderr
-    page = (run / "index.html").read_text()
+    page = without_own_script((run / "index.html").read_text())
     assert "<script" not in page.lower() and "<img src=x" not in page.lower()
     assert "<b>" not in page
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in page  # shown, as text
@@ -90,7 +98,8 @@ def test_record_strings_are_escaped(tmp_path):
     assert len(_warnings(proc)) == 1, proc.stderr
 
 
-def test_artifacts_are_read_only_from_inside_the_run_folder(tmp_path, secret):
+@pytest.mark.parametrize("single_file", [False, True], ids=["files", "single-file"])
+def test_artifacts_are_read_only_from_inside_the_run_folder(tmp_path, secret, single_file):
     run = run_folder(tmp_path, {})
     (run / "images").mkdir()
     (run / "images" / "inside.png").symlink_to(tmp_path / "secret.png")
@@ -100,14 +109,22 @@ def test_artifacts_are_read_only_from_inside_the_run_folder(tmp_path, secret):
                  "records/../../secret.png", "images/inside.png", "images/text.png",
                  "records/a.json", "images/ok.png"]
     write_record(run / "records" / "a.json", record(artifacts=artifacts))
-    proc = bench("report", run)
+    proc = bench("report", run, *["--single-file"] * single_file)
     assert proc.returncode == 0, proc.stderr
     page = (run / "index.html").read_text()
     assert SECRET not in page
     for blob in (secret.read_bytes(), (tmp_path / "secret.png").read_bytes(),
                  Path("/etc/passwd").read_bytes(), b"not an image"):
         assert base64.b64encode(blob).decode()[:24] not in page
-    assert base64.b64encode(_png()).decode() in page  # the one real artifact is shown
+    if single_file:  # the one real artifact is shown, inlined
+        assert base64.b64encode(_png()).decode() in page
+    else:  # ... as a thumbnail linking to the file
+        assert ("<a href='images/ok.png'><img src='images/thumbs/ok.jpg' alt='ok'"
+                in page)
+        written = [p for p in run.rglob("*") if p.is_file() and not p.is_symlink()]
+        assert (run / "images" / "thumbs" / "ok.jpg") in written
+        assert all(SECRET.encode() not in p.read_bytes() for p in written)
+        assert not (run / "images" / "thumbs" / "inside.jpg").exists()
     assert page.count("outside the run folder") == 6
     assert "&#x27;images/inside.png&#x27;: outside the run folder" in page
     assert "&#x27;images/text.png&#x27;: not a PNG file" in page
@@ -115,6 +132,24 @@ def test_artifacts_are_read_only_from_inside_the_run_folder(tmp_path, secret):
     warnings = _warnings(proc)
     assert len(warnings) == 8, proc.stderr
     assert all(SECRET not in line for line in warnings)
+
+
+def test_images_are_not_written_through_a_link_out_of_the_run_folder(tmp_path):
+    """A run folder whose images/thumbs links elsewhere: the thumbnails are not written
+    there, and the report says why."""
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    run = run_folder(tmp_path, {})
+    (run / "images").mkdir()
+    (run / "images" / "thumbs").symlink_to(outside)
+    (run / "images" / "ok.png").write_bytes(_png())
+    write_record(run / "records" / "a.json", record(artifacts=["images/ok.png"]))
+    proc = bench("report", run)
+    assert proc.returncode == 0, proc.stderr
+    assert list(outside.iterdir()) == []
+    page = (run / "index.html").read_text()
+    assert "&#x27;images/thumbs/ok.jpg&#x27;: its folder leaves the run folder" in page
+    assert len(_warnings(proc)) == 1, proc.stderr
 
 
 def _png() -> bytes:
@@ -180,7 +215,10 @@ def test_report_and_table_are_replaced_not_rewritten_in_place(tmp_path):
         write()
         assert (tmp_path / f"held-{name}").read_text() == "old\n"
         assert (run / name).read_text() != "old\n"
-    assert sorted(p.name for p in run.iterdir()) == ["index.html", "records", "results.csv"]
+    # the report's plots are files of images/; no temporary file is left anywhere
+    assert sorted(p.name for p in run.iterdir()) == ["images", "index.html", "records",
+                                                     "results.csv"]
+    assert not [p for p in run.rglob("*") if p.name.startswith(".")]
 
 
 def test_outputs_get_the_umask_permissions(tmp_path):
@@ -192,7 +230,9 @@ def test_outputs_get_the_umask_permissions(tmp_path):
         write_table(run, [record()])
     finally:
         os.umask(old)
-    for path in (run / "records" / "r.json", run / "index.html", run / "results.csv"):
+    plots = list((run / "images").rglob("*.svg"))
+    assert plots
+    for path in (run / "records" / "r.json", run / "index.html", run / "results.csv", *plots):
         assert path.stat().st_mode & 0o777 == 0o644, path
 
 

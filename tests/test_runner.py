@@ -100,8 +100,9 @@ def test_results_csv_and_report(run):
     assert len(table) == 8
     assert sorted(table.status.unique()) == ["failed", "ok"]
     html = (root / "out" / "index.html").read_text()
-    assert "deliberate failure" in html and "data:image/png;base64," in html
-    assert "http://" not in html and "https://" not in html  # self-contained
+    assert "deliberate failure" in html and "data:image" not in html
+    assert "src='images/thumbs/" in html  # images are files of the run folder ...
+    assert "http://" not in html and "https://" not in html  # ... and nothing is fetched
 
 
 def test_method_variant_label(run):

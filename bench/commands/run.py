@@ -50,6 +50,9 @@ def add_parser(sub, name: str) -> None:
     p.add_argument("--timeout", default="900", metavar="S",
                    help="seconds per job, finite and above 0 (default 900)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML report")
+    p.add_argument("--single-file", action="store_true", help="inline every image in "
+                   "index.html (one self-contained file, for small runs) instead of "
+                   "linking image files of DIR")
     p.set_defaults(run=run)
 
 
@@ -202,7 +205,7 @@ def run(args) -> int:
         print(f"bench: interrupted; {kept} records kept in {out}; --resume continues",
               file=sys.stderr)
         return 130
-    return finish(out, build_report=not args.no_report)
+    return finish(out, build_report=not args.no_report, single_file=args.single_file)
 
 
 def _default_methods_line(methods, names: list[str], meshes: dict) -> str:
@@ -217,8 +220,9 @@ def _default_methods_line(methods, names: list[str], meshes: dict) -> str:
             + (f"; skipped: {'; '.join(notes)}" if notes else ""))
 
 
-def finish(out: Path, build_report: bool = True) -> int:
-    """Write results.csv (and the report) from every record in ``out``; print a summary.
+def finish(out: Path, build_report: bool = True, single_file: bool = False) -> int:
+    """Write results.csv (and the report, in one file with ``single_file``) from every
+    record in ``out``; print a summary.
 
     A record that cannot be used (damaged, or not a record) is left out with a warning
     and a note in the report, so one bad file does not hide the rest of a run. The
@@ -239,7 +243,8 @@ def finish(out: Path, build_report: bool = True) -> int:
     if build_report:  # every file is written before anything is said about the run
         from bench.harness.report import write_report
 
-        written.append(_writing(out / "index.html", lambda: write_report(out, records, skipped)))
+        written.append(_writing(out / "index.html", lambda: write_report(
+            out, records, skipped, single_file=single_file)))
     table = records_table(records)
     for column in ("model", "method", "status"):
         table[column] = table[column].map(one_line)

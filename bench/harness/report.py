@@ -1,35 +1,49 @@
-"""The self-contained HTML report of a run directory (``DIR/index.html``).
+"""The HTML report of a run directory: ``DIR/index.html``, and above :data:`PAGE_LIMIT`
+jobs one page per model (``DIR/model-<slug>.html``) linked from it.
 
-Everything is inlined (plots and images as base64 PNG), so the file opens from disk
-with no network. Sections follow Lindstrom & Turk 2000: a summary table, per model the
-d_RMS and Hausdorff curves over face count (Figures 5 and 6), silhouette histograms
-(Figure 7), image sheets with difference images (Plate 13), a timing table (Table 1),
-and the failures with their errors.
+Sections follow Lindstrom & Turk 2000: a summary table (sortable and filterable,
+:mod:`bench.harness.report_table`), per model the d_RMS and Hausdorff curves over face
+count (Figures 5 and 6), silhouette histograms (Figure 7), image sheets with difference
+images (Plate 13), a timing table (Table 1), and the failures with their errors.
+
+Images are files of the run folder linked by relative URLs (thumbnails linking to the
+full PNGs, plots as SVG; :mod:`bench.harness.report_images`), so the folder opens from
+disk with no server and can be zipped or published as it is; ``single_file=True``
+(``--single-file``) inlines every image as base64 instead, in one page.
 
 A run folder may come from someone else, so nothing in it is trusted: every string from
 a record is HTML-escaped where it is written, only records that pass
 :func:`~bench.harness.results.record_problem` are shown, and images are read only from
-inside the run folder and only when they are PNG files (:func:`_run_png`). What is left
-out for any of these reasons is listed under "Warnings" at the top of the report and
-given as a :class:`~bench.errors.RecordWarning`.
+inside the run folder and only when they are PNG files
+(:func:`~bench.harness.report_images.run_png`). What is left out for any of these
+reasons is listed under "Warnings" at the top of the report and given as a
+:class:`~bench.errors.RecordWarning`.
 """
 
 from __future__ import annotations
 
-import base64
-import html
-import io
+import hashlib
 import math
 import numbers
+import re
 import warnings
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
 from bench.errors import RecordWarning
+from bench.harness.report_images import Inline, RunFiles, Shown, difference_png, run_png
+from bench.harness.report_table import SCRIPT, summary_html
+from bench.harness.report_table import cell as _cell
+from bench.harness.report_table import esc as _esc
 from bench.harness.results import load_records, records_table, shading_label, write_atomic
 
-__all__ = ["write_report"]
+__all__ = ["PAGE_LIMIT", "SCRIPT", "write_report"]
+
+#: Above this many jobs the report is one page per model, linked from index.html, so no
+#: page holds more than one model's images.
+PAGE_LIMIT = 50
 
 _CSS = """
 body{font-family:system-ui,sans-serif;margin:2em;max-width:1400px;color:#222}
@@ -37,30 +51,35 @@ h1{font-size:1.5em}h2{margin-top:2em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;font-size:.85em;margin:1em 0}
 td,th{border:1px solid #ddd;padding:3px 7px;text-align:right;white-space:nowrap}
 th{background:#f3f3f3}td:first-child,td:nth-child(2){text-align:left}
+.sortable thead tr:first-child th{cursor:pointer}.units th{font-weight:normal;font-size:.85em}
+th[aria-sort=ascending]::after{content:" \\25B2"}th[aria-sort=descending]::after{content:" \\25BC"}
+.best{font-weight:bold;background:#dff0d8}
+td.reason{max-width:30em;overflow:hidden;text-overflow:ellipsis}
 .failed{background:#fde2e2}.skipped{color:#888}
-.sheet{display:grid;grid-template-columns:repeat(4,164px);gap:4px;margin:.5em 0 1.5em}
+.sheet{display:grid;grid-template-columns:repeat(4,260px);gap:4px;margin:.5em 0 1.5em}
 .scroll{overflow-x:auto}
 .sheet figure{margin:0;text-align:center;font-size:.75em}
-.sheet img{width:160px;height:160px;image-rendering:pixelated}
+.sheet img{width:256px;height:256px}
 .plots img{max-width:48%}
 .artifact img{max-width:512px;image-rendering:pixelated}.artifact{margin:0 0 1.5em}
 pre{background:#f7f7f7;padding:.5em;white-space:pre-wrap;font-size:.8em}
 .note{color:#555;font-size:.9em}.warnings{background:#fff4d6;padding:.3em 1em}
 """
 
-#: The first bytes of every PNG file.
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: Largest image inlined (a sheet view is well under 1 MB, a 1024² artifact a few MB).
-_MAX_IMAGE_BYTES = 32 << 20
+#: Summary-table columns left out when no record of the run defines them.
+_OPTIONAL_COLUMNS = ("exterior_share",)
 
 
 def write_report(run_dir: Path, records: list[dict] | None = None,
-                 skipped: list[str] | tuple = ()) -> Path:
-    """Build ``run_dir/index.html`` (atomically) from the records found there.
+                 skipped: list[str] | tuple = (), single_file: bool = False) -> Path:
+    """Build ``run_dir/index.html`` (atomically) from the records found there; returns
+    its path.
 
     ``skipped`` lists the one-line reasons of records the caller left out (they are
     shown under "Warnings"); with ``records`` None the records are loaded here, bad ones
-    left out with a warning each.
+    left out with a warning each. ``single_file`` inlines every image in one page;
+    otherwise images are written under ``run_dir/images/`` and, above
+    :data:`PAGE_LIMIT` jobs, each model gets a page of its own.
     """
     run_dir = Path(run_dir)
     notes = list(skipped)
@@ -69,31 +88,83 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
         records = load_records(run_dir, skipped=notes)
         for note in notes[before:]:
             warnings.warn(note, RecordWarning, stacklevel=2)
-    table = records_table(records)
-    body = [_protocol_note(records), "<h2>Summary</h2>",
-            _table_html(table.drop(columns=[c for c in _OPTIONAL_COLUMNS
-                                            if table[c].isna().all()]))]
     refused = []  # images left out of the sheets, with why
-    for model in dict.fromkeys(table.model):
-        sub = [r for r in records if r["job"]["model"] == model]
-        body.append(f"<h2>{_esc(model)}</h2>")
-        body.append(_plots(table[(table.model == model) & (table.status == "ok")]))
-        body.append(_exterior_table(table[(table.model == model) & (table.status == "ok")]))
-        body.append(_silhouette_plot(sub))
-        body.append(_sheets(run_dir, sub, refused))
+    out = Inline() if single_file else RunFiles(run_dir, refused)
+    table = records_table(records)
+    models = list(dict.fromkeys(table.model))
+    slugs = _slugs(models)
+    split = not single_file and len(records) > PAGE_LIMIT
+    sections = {m: _model_section(run_dir, m, records, table, out, refused, slugs[m])
+                for m in models}
     for note in refused:
         warnings.warn(note, RecordWarning, stacklevel=2)
-    body += ["<h2>Timing</h2>", _timing(records), "<h2>Failures</h2>", _failures(records)]
-    parts = [(f"<!doctype html><html><head><meta charset='utf-8'><title>bench report: "
-              f"{_esc(run_dir.name)}</title><style>{_CSS}</style></head><body>"),
-             f"<h1>Simplification benchmark: {_esc(run_dir.name)}</h1>",
-             _warnings_html(notes + refused), *body, "</body></html>"]
-    return write_atomic(run_dir / "index.html", "\n".join(parts))
+    links = {m: f"model-{slugs[m]}.html" if split else f"#m-{slugs[m]}" for m in models}
+    summary = ["<h2>Summary</h2>", summary_html(_summary_table(table), records, links)]
+    if split:
+        for m in models:
+            write_atomic(run_dir / links[m], _model_page(run_dir, m, sections[m], records))
+        body = [*summary, _model_list(models, links, table),
+                "<h2>Failures</h2>", _failures(records)]
+    else:
+        body = [*summary, *(part for m in models for part in sections[m]),
+                "<h2>Timing</h2>", _timing(records), "<h2>Failures</h2>", _failures(records)]
+    page = _page(f"bench report: {_esc(run_dir.name)}",
+                 [f"<h1>Simplification benchmark: {_esc(run_dir.name)}</h1>",
+                  _warnings_html(notes + refused), _protocol_note(records), *body])
+    return write_atomic(run_dir / "index.html", page)
 
 
-def _esc(value) -> str:
-    """Any value from a record as HTML text (quotes escaped too, for attributes)."""
-    return html.escape(str(value), quote=True)
+def _page(title: str, parts: list[str]) -> str:
+    """A whole HTML page: ``title`` and ``parts`` are HTML already."""
+    head = (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title>"
+            f"<style>{_CSS}</style></head><body>")
+    return "\n".join([head, *parts, SCRIPT, "</body></html>"])
+
+
+def _model_page(run_dir: Path, model: str, section: list[str], records: list[dict]) -> str:
+    """The page of one model in a split report: its section and its timing table."""
+    own = [r for r in records if r["job"]["model"] == model]
+    return _page(f"bench report: {_esc(run_dir.name)} / {_esc(model)}",
+                 [f"<p><a href='index.html'>← summary of {_esc(run_dir.name)}</a></p>",
+                  f"<h1>Simplification benchmark: {_esc(run_dir.name)}, {_esc(model)}</h1>",
+                  _protocol_note(own), *section,
+                  "<h2>Timing</h2>", _timing(own)])
+
+
+def _model_list(models: list[str], links: dict[str, str], table) -> str:
+    """Links to the model pages, each with its number of jobs and failures."""
+    items = []
+    for m in models:
+        statuses = Counter(table.status[table.model == m])
+        bad = ", ".join(f"{statuses[s]} {s}" for s in ("failed", "skipped") if statuses[s])
+        items.append(f"<li><a href='{links[m]}'>{_esc(m)}</a>: {sum(statuses.values())} jobs"
+                     f"{f' ({bad})' if bad else ''}</li>")
+    return ("<h2>Models</h2><p class='note'>One page per model, with its plots, image "
+            f"sheets and timing.</p><ul>{''.join(items)}</ul>")
+
+
+def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
+                   refused: list[str], slug: str) -> list[str]:
+    """A model's heading, plots, exterior table, silhouette histograms and sheets."""
+    own = [r for r in records if r["job"]["model"] == model]
+    ok = table[(table.model == model) & (table.status == "ok")]
+    return [f"<h2 id='m-{slug}'>{_esc(model)}</h2>", _plots(ok, out, slug),
+            _exterior_table(ok), _silhouette_plot(own, out, slug),
+            _sheets(run_dir, own, refused, out)]
+
+
+def _slugs(models: list[str]) -> dict[str, str]:
+    """A file-name part per model: lower-case letters, digits and ``-``, with a short
+    hash of the name where two names would give the same part (or none)."""
+    base = {m: re.sub(r"[^a-z0-9]+", "-", str(m).lower()).strip("-")[:40] for m in models}
+    counts = Counter(base.values())
+    return {m: b if b and counts[b] == 1 else
+            f"{b}-{hashlib.sha1(str(m).encode()).hexdigest()[:8]}".lstrip("-")
+            for m, b in base.items()}
+
+
+def _summary_table(table):
+    return table.drop(columns=[c for c in _OPTIONAL_COLUMNS if table[c].isna().all()])
 
 
 def _warnings_html(notes: list[str]) -> str:
@@ -102,10 +173,6 @@ def _warnings_html(notes: list[str]) -> str:
     items = "".join(f"<li>{_esc(n)}</li>" for n in notes)
     return (f"<div class='warnings'><h2>Warnings</h2><p>Left out of this report:</p>"
             f"<ul>{items}</ul></div>")
-
-
-#: Summary-table columns left out when no record of the run defines them.
-_OPTIONAL_COLUMNS = ("exterior_share",)
 
 
 def _shadings(records: list[dict]) -> list[str]:
@@ -140,24 +207,6 @@ def _dict(value) -> dict:
     return value if isinstance(value, dict) else {}
 
 
-def _table_html(table) -> str:
-    rows = []
-    for _, r in table.iterrows():
-        cls = f" class='{_esc(r.status)}'" if r.status != "ok" else ""
-        cells = "".join(f"<td>{_cell(v)}</td>" for v in r.values)
-        rows.append(f"<tr{cls}>{cells}</tr>")
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in table.columns)
-    return f"<div class='scroll'><table><tr>{head}</tr>{''.join(rows)}</table></div>"
-
-
-def _cell(value) -> str:
-    if value is None or (isinstance(value, float) and np.isnan(value)):
-        return ""
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    return _esc(value)
-
-
 def _fixed(value, digits: int = 3) -> str:
     """``value`` with ``digits`` decimals; a dash when missing (a metric that raised) or
     not a number."""
@@ -172,15 +221,6 @@ def _plot_text(text: str) -> str:
     return str(text).replace("$", r"\$")
 
 
-def _png(fig) -> str:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
-
-
 def _pyplot():
     """matplotlib's pyplot on the file-only backend, imported only for a report that
     draws (a run of failures alone draws nothing and skips the import)."""
@@ -192,7 +232,7 @@ def _pyplot():
     return plt
 
 
-def _plots(table) -> str:
+def _plots(table, out, slug: str) -> str:
     import pandas as pd
 
     if table.empty:
@@ -202,7 +242,7 @@ def _plots(table) -> str:
     series = table.method if table.shading.nunique() == 1 else \
         table.method + " (" + table.shading + ")"
     series = series.map(_plot_text)
-    out = []
+    imgs = []
     for column, title in (("d_rms", "d_RMS (luminance, 0-255) vs faces — cf. Figure 5"),
                           ("hausdorff_mean", "mean Hausdorff (fraction of diagonal) vs faces — cf. Figure 6")):
         fig, ax = plt.subplots(figsize=(6, 4))
@@ -220,8 +260,31 @@ def _plots(table) -> str:
         ax.set_title(title, fontsize=9)
         ax.legend(fontsize=7)
         ax.grid(True, which="both", alpha=.3)
-        out.append(f"<img alt='{column} plot' src='{_png(fig)}'>")
-    return "<div class='plots'>" + "".join(out) + "</div>"
+        imgs.append(_img(out.plot(fig, f"{slug}-{column}"), f"{column} plot", out))
+    return "<div class='plots'>" + "".join(imgs) + "</div>"
+
+
+def _img(src: str, alt: str, out) -> str:
+    """An ``<img>`` of a plot (``alt`` is the report's own text); none when the plot
+    could not be written."""
+    if not src:
+        return ""
+    return f"<img alt='{alt}' src='{src}'{_LAZY if out.files else ''}>"
+
+
+#: Images below the first screen are fetched as they scroll into view.
+_LAZY = " loading='lazy'"
+
+
+def _figure(shown: Shown, caption: str, cls: str = "") -> str:
+    """An image with its caption; a thumbnail links to its full-size image."""
+    if shown.href is None:
+        img = f"<img src='{shown.src}' alt='{_esc(caption)}'>"
+    else:
+        img = (f"<a href='{shown.href}'><img src='{shown.src}' alt='{_esc(caption)}'"
+               f"{_LAZY}></a>")
+    return (f"<figure{f' class={cls!r}' if cls else ''}>{img}"
+            f"<figcaption>{_esc(caption)}</figcaption></figure>")
 
 
 def _exterior_table(table) -> str:
@@ -251,7 +314,7 @@ def _exterior_faces(faces, share) -> int | None:
     return round(product) if math.isfinite(product) else None
 
 
-def _silhouette_plot(records: list[dict]) -> str:
+def _silhouette_plot(records: list[dict], out, slug: str) -> str:
     ok = [r for r in records if r["status"] == "ok" and r.get("silhouette_histogram")]
     if not ok:
         return ""
@@ -274,130 +337,75 @@ def _silhouette_plot(records: list[dict]) -> str:
     ax.set_ylabel("share of edges")
     ax.set_title(f"Silhouette histograms at {smallest} faces — cf. Figure 7", fontsize=9)
     ax.legend(fontsize=7)
-    return f"<div class='plots'><img alt='silhouette histograms' src='{_png(fig)}'></div>"
+    src = out.plot(fig, f"{slug}-silhouettes")
+    return f"<div class='plots'>{_img(src, 'silhouette histograms', out)}</div>"
 
 
-def _run_png(run_dir: Path, relative, refused: list[str] | None = None,
-             what: str = "") -> bytes | None:
-    """The bytes of the PNG file ``run_dir/relative``, or None.
-
-    Refused (None, and a reason appended to ``refused`` when given): a name that is not
-    a relative string, a path that leaves the run folder (``..``, an absolute path, a
-    link to elsewhere), a name without ``.png``, a file that does not start with the PNG
-    signature or is over :data:`_MAX_IMAGE_BYTES`. A file that is simply absent is None
-    (and a reason only for ``what``-named images a record promised).
-    """
-    def refuse(why: str) -> None:
-        if refused is not None:
-            refused.append(f"{what or 'image'} {str(relative)!r}: {why}; not shown")
-
-    if not isinstance(relative, (str, Path)) or not str(relative):
-        refuse("not a file name")
-        return None
-    path = run_dir / relative
-    root = run_dir.resolve()
-    try:
-        resolved = path.resolve()
-    except (OSError, RuntimeError):  # RuntimeError: a symlink loop
-        refuse("cannot be resolved")
-        return None
-    if Path(relative).is_absolute() or not resolved.is_relative_to(root):
-        refuse("outside the run folder")
-        return None
-    if resolved.suffix.lower() != ".png":
-        refuse("not a .png file")
-        return None
-    try:
-        if not resolved.is_file():
-            if what:
-                refuse("no such file in the run folder")
-            return None
-        if resolved.stat().st_size > _MAX_IMAGE_BYTES:
-            refuse(f"larger than {_MAX_IMAGE_BYTES >> 20} MB")
-            return None
-        data = resolved.read_bytes()
-    except OSError as exc:
-        refuse(f"unreadable ({exc.strerror or exc})")
-        return None
-    if not data.startswith(_PNG_SIGNATURE):
-        refuse("not a PNG file")
-        return None
-    return data
-
-
-def _data_uri(data: bytes | None) -> str | None:
-    return None if data is None else "data:image/png;base64," + base64.b64encode(data).decode()
-
-
-def _difference_uri(original: bytes | None, simplified: bytes | None) -> str | None:
-    """|ΔY| scaled ×4 and inverted (white = equal), as in Plate 13's difference images;
-    None when either image is missing or the two cannot be compared."""
-    from PIL import Image
-
-    if original is None or simplified is None:
-        return None
-    from metrics.image import luminance
-
-    try:
-        a = luminance(np.asarray(Image.open(io.BytesIO(original)).convert("RGB")))
-        b = luminance(np.asarray(Image.open(io.BytesIO(simplified)).convert("RGB")))
-        diff = (255 - np.clip(4 * np.abs(a - b), 0, 255)).astype(np.uint8)
-    except (OSError, ValueError, Image.DecompressionBombError):  # damaged, or sizes differ
-        return None
-    buf = io.BytesIO()
-    Image.fromarray(diff).save(buf, format="PNG")
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode()
-
-
-def _sheets(run_dir: Path, records: list[dict], refused: list[str]) -> str:
+def _sheets(run_dir: Path, records: list[dict], refused: list[str], out) -> str:
     """The image sheets of ``records``' ok jobs and their artifacts; images that cannot
     be shown safely are left out with a reason in ``refused``."""
-    from bench.harness.keys import legacy_job_key
-    from bench.harness.jobs import SHEET_VIEWS, Job
-    from metrics.protocol import Protocol
-
     several = len(_shadings(records)) > 1
-    out = []
+    parts = []
     for r in records:
         if r["status"] != "ok":
             continue
         job = r["job"]
-        proto = Protocol(**job["protocol"])
-        key = job.get("key") or Job(job["model"], job["method"], job["target_faces"],
-                                    job.get("params") or {}, proto).key
-        if not job.get("key") and not (run_dir / "images" / key).is_dir():  # an older run
-            key = legacy_job_key(job["model"], job["label"], job["target_faces"], proto)
-        shading = proto.shading + ("-spec" if proto.specular else "")
-        digest = r["model"].get("hash")
-        orig_dir = f"images/original__{digest[:12]}__{shading}" if digest else None
-        rows = {"original": [], "result": [], "difference": []}  # one grid row each
-        d_views = (r.get("per_view") or {}).get("d_rms") or []
-        for v in SHEET_VIEWS:
-            o = _run_png(run_dir, f"{orig_dir}/view{v:02d}.png", refused) if orig_dir else None
-            s = _run_png(run_dir, f"images/{key}/view{v:02d}.png", refused)
-            rows["original"].append((f"original, view {v}", _data_uri(o)))
-            rows["result"].append((f"{r['metrics'].get('faces')} faces", _data_uri(s)))
-            rows["difference"].append((f"|ΔY|×4, d_RMS {_fixed(d_views[v], 1)}"
-                                       if v < len(d_views) else "|ΔY|×4", _difference_uri(o, s)))
-        figs = [f"<figure><img src='{uri}' alt='{_esc(caption)}'>"
-                f"<figcaption>{_esc(caption)}</figcaption></figure>"
-                for row in rows.values() for caption, uri in row if uri]
+        shading = shading_label(job["protocol"])
         evaluated = f", evaluated {_esc(shading)}" if several else ""
-        out.append(f"<h3>{_esc(job['label'])} at {job['target_faces']} faces{evaluated}: "
-                   f"d_RMS {_fixed(r['metrics'].get('d_rms'))}</h3><div class='sheet'>{''.join(figs)}</div>")
+        parts.append(f"<h3>{_esc(job['label'])} at {job['target_faces']} faces{evaluated}: "
+                     f"d_RMS {_fixed(r['metrics'].get('d_rms'))}</h3><div class='sheet'>"
+                     f"{''.join(_sheet_figures(run_dir, r, refused, out))}</div>")
         for name in r.get("artifacts") or []:  # images the method asked to show
-            uri = _data_uri(_run_png(run_dir, name, refused,
-                                     what=f"{job['label']} / {job['target_faces']} artifact"))
-            if uri:
-                caption = Path(name).stem.removeprefix("artifact-")
-                out.append(f"<figure class='artifact'><img src='{uri}' alt='{_esc(caption)}'>"
-                           f"<figcaption>{_esc(caption)}</figcaption></figure>")
-    return "".join(out)
+            png = run_png(run_dir, name, refused,
+                          what=f"{job['label']} / {job['target_faces']} artifact")
+            shown = out.view(png) if png else None
+            if shown:
+                parts.append(_figure(shown, Path(name).stem.removeprefix("artifact-"),
+                                     "artifact"))
+    return "".join(parts)
+
+
+def _sheet_figures(run_dir: Path, record: dict, refused: list[str], out) -> list[str]:
+    """A job's sheet: the original's views, the result's and their differences, one
+    grid row each."""
+    from bench.harness.jobs import SHEET_VIEWS
+
+    key, original = _image_folders(run_dir, record)
+    d_views = (record.get("per_view") or {}).get("d_rms") or []
+    rows = {"original": [], "result": [], "difference": []}
+    for v in SHEET_VIEWS:
+        o = run_png(run_dir, f"{original}/view{v:02d}.png", refused) if original else None
+        s = run_png(run_dir, f"images/{key}/view{v:02d}.png", refused)
+        diff = difference_png(o, s)
+        rows["original"].append((f"original, view {v}", out.view(o) if o else None))
+        rows["result"].append((f"{record['metrics'].get('faces')} faces",
+                               out.view(s) if s else None))
+        rows["difference"].append((f"|ΔY|×4, d_RMS {_fixed(d_views[v], 1)}"
+                                   if v < len(d_views) else "|ΔY|×4",
+                                   out.difference(diff, s) if diff else None))
+    return [_figure(shown, caption) for row in rows.values() for caption, shown in row if shown]
+
+
+def _image_folders(run_dir: Path, record: dict) -> tuple[str, str | None]:
+    """The job key the record's views are filed under (an older run's where the record
+    has no key) and the folder of its original's views (None without a model hash)."""
+    from bench.harness.jobs import Job
+    from bench.harness.keys import legacy_job_key
+    from metrics.protocol import Protocol
+
+    job = record["job"]
+    proto = Protocol(**job["protocol"])
+    key = job.get("key") or Job(job["model"], job["method"], job["target_faces"],
+                                job.get("params") or {}, proto).key
+    if not job.get("key") and not (run_dir / "images" / key).is_dir():  # an older run
+        key = legacy_job_key(job["model"], job["label"], job["target_faces"], proto)
+    digest = record["model"].get("hash")
+    shading = shading_label(job["protocol"])
+    return key, f"images/original__{digest[:12]}__{shading}" if digest else None
 
 
 def _timing(records: list[dict]) -> str:
-    rows = [("<tr><th>model</th><th>method</th><th>faces before</th><th>faces after</th>"
-             "<th>seconds</th><th>triangles removed / s</th><th>peak MB</th></tr>")]
+    rows = []
     several = len(_shadings(records)) > 1  # then each shading's job simplified on its own
     for r in records:
         if r["status"] != "ok":
@@ -410,7 +418,12 @@ def _timing(records: list[dict]) -> str:
                     f"<td>{_cell(r['metrics'].get('faces'))}</td>"
                     f"<td>{_cell(s.get('wall_seconds'))}</td><td>{_cell(s.get('tri_per_s'))}</td>"
                     f"<td>{_cell(s.get('peak_mb'))}</td></tr>")
-    return "<p class='note'>cf. Table 1 of Lindstrom & Turk 2000.</p><table>" + "".join(rows) + "</table>"
+    return ("<p class='note'>cf. Table 1 of Lindstrom & Turk 2000.</p><table class='sortable'>"
+            f"<thead>{_TIMING_HEAD}</thead><tbody>{''.join(rows)}</tbody></table>")
+
+
+_TIMING_HEAD = ("<tr><th>model</th><th>method</th><th>faces before</th><th>faces after</th>"
+                "<th>seconds</th><th>triangles removed / s</th><th>peak MB</th></tr>")
 
 
 def _failures(records: list[dict]) -> str:

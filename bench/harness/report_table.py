@@ -1,0 +1,201 @@
+"""The report's summary table, and the few lines of script that sort and filter it.
+
+One row per record: failed and skipped jobs first, with the first line of their error
+as the reason; numbers right-aligned, each column's unit and direction (from the
+metric's registration, :class:`bench.metric.Metric`) in a second header row; in each
+group of ok jobs of one model, budget and evaluation shading, the best value of each
+metric that has a direction is marked. Every string from a record is HTML-escaped.
+
+The script (:data:`SCRIPT`) is the page's only one and needs no network: a click on a
+header sorts the rows by that column (numbers as numbers, empty cells last; a second
+click reverses), the text box shows only the rows that contain every word typed, and
+``#sort=COLUMN`` (``#sort=-COLUMN`` descending) in the page's address sorts on load.
+"""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+
+__all__ = ["SCRIPT", "cell", "esc", "summary_html"]
+
+SCRIPT = """<script>/* bench report: sortable and filterable tables */
+(function () {
+  function key(cell) {
+    var text = cell ? cell.textContent.trim() : "", n = Number(text);
+    return text === "" ? null : isNaN(n) ? text.toLowerCase() : n;
+  }
+  function compare(a, b) {
+    if (typeof a !== typeof b) return typeof a === "number" ? -1 : 1;
+    return a < b ? -1 : a > b ? 1 : 0;
+  }
+  function sortBy(table, th, i) {
+    var up = th.getAttribute("aria-sort") !== "ascending", body = table.tBodies[0];
+    Array.prototype.forEach.call(th.parentNode.cells, function (h) { h.removeAttribute("aria-sort"); });
+    th.setAttribute("aria-sort", up ? "ascending" : "descending");
+    var rows = Array.prototype.slice.call(body.rows);
+    rows.sort(function (r, s) {
+      var a = key(r.cells[i]), b = key(s.cells[i]);
+      if (a === null || b === null) return (a === null) - (b === null);
+      return up ? compare(a, b) : compare(b, a);
+    });
+    rows.forEach(function (r) { body.appendChild(r); });
+  }
+  document.querySelectorAll("table.sortable").forEach(function (table) {
+    Array.prototype.forEach.call(table.tHead.rows[0].cells, function (th, i) {
+      th.addEventListener("click", function () { sortBy(table, th, i); });
+    });
+  });
+  var box = document.getElementById("filter");
+  if (box) box.addEventListener("input", function () {
+    var words = box.value.toLowerCase().split(/\\s+/).filter(Boolean);
+    document.querySelectorAll("#summary tbody tr").forEach(function (row) {
+      var text = row.textContent.toLowerCase();
+      row.hidden = !words.every(function (w) { return text.indexOf(w) >= 0; });
+    });
+  });
+  var wanted = /sort=(-?)([^&]+)/.exec(location.hash), summary = document.getElementById("summary");
+  if (wanted && summary) Array.prototype.forEach.call(summary.tHead.rows[0].cells, function (th) {
+    if (th.textContent === decodeURIComponent(wanted[2])) { th.click(); if (wanted[1]) th.click(); }
+  });
+})();
+</script>"""
+
+#: Units of the summary's columns that are not metrics (a metric's is its registration's).
+_UNITS = {"target_faces": "faces", "seconds": "s", "tri_per_s": "triangles/s", "peak_mb": "MB"}
+#: Columns of text (left-aligned); every other column holds numbers.
+_TEXT_COLUMNS = ("model", "method", "shading", "status", "reason")
+#: Failed jobs first, then skipped ones, then the rest (in the order of the records).
+_STATUS_ORDER = {"failed": 0, "skipped": 1}
+#: Longest reason shown in the table (the whole error is under "Failures").
+_REASON_CHARS = 160
+
+
+def esc(value) -> str:
+    """Any value from a record as HTML text (quotes escaped too, for attributes)."""
+    return html.escape(str(value), quote=True)
+
+
+def cell(value) -> str:
+    """A table cell's text: floats to 4 significant digits, missing values empty."""
+    if value is None or (isinstance(value, float) and np.isnan(value)):
+        return ""
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return esc(value)
+
+
+def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
+    """The summary table of ``table`` (:func:`~bench.harness.results.records_table` of
+    ``records``, row i from ``records[i]``), each model name linking to ``links[model]``,
+    with the filter box and a note on how to read it."""
+    reasons = [_reason(r) for r in records]
+    columns = _columns(list(table.columns), any(reasons))
+    metrics = _metric_info()
+    best = _best_cells(table, {c: up for c, (_, up) in metrics.items()
+                               if c in table.columns and up is not None})
+    rows = [_row(table.iloc[i], i, reasons[i], columns, best, links)
+            for i in sorted(range(len(table)), key=lambda i: _STATUS_ORDER.get(table.status.iat[i], 2))]
+    heads = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
+    units = "".join(_unit_cell(c, metrics) for c in columns)
+    left = ",".join(f"#summary {tag}:nth-child({columns.index(c) + 1})"
+                    for c in _TEXT_COLUMNS if c in columns for tag in ("td", "th"))
+    return (f"<style>#summary td{{text-align:right}}{left}{{text-align:left}}</style>"
+            f"{_HOW_TO_READ}<div class='scroll'><table id='summary' class='sortable'>"
+            f"<thead><tr>{heads}</tr><tr class='units'>{units}</tr></thead>"
+            f"<tbody>{''.join(rows)}</tbody></table></div>")
+
+
+def _columns(columns: list[str], reasons: bool) -> list[str]:
+    """The table's columns: the status (and the reason, when some job has one) after the
+    budget, where a failure's row shows them without scrolling."""
+    at = columns.index("target_faces") + 1
+    front = ["status", "reason"] if reasons else ["status"]
+    return columns[:at] + front + [c for c in columns[at:] if c != "status"]
+
+
+_HOW_TO_READ = (
+    "<p class='note'>Click a column header to sort (again to reverse); the box shows only "
+    "the rows that contain every word typed. Units are under the names; ↓ lower is better, "
+    "↑ higher is better, and the best value of each model, budget and shading is "
+    "<span class='best'>marked</span>. Failed and skipped jobs come first, with their "
+    "reason.</p><p><input id='filter' type='search' size='40' "
+    "placeholder='filter, e.g. bunny qslim' aria-label='filter the summary table'></p>")
+
+
+def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict) -> str:
+    cells = []
+    for c in columns:
+        if c == "reason":
+            cells.append(f"<td class='reason' title='{esc(reason)}'>{esc(reason)}</td>"
+                         if reason else "<td></td>")
+            continue
+        text = cell(row[c])
+        if c == "model" and row[c] in links:
+            text = f"<a href='{links[row[c]]}'>{text}</a>"
+        cells.append(f"<td class='best'>{text}</td>" if (i, c) in best else f"<td>{text}</td>")
+    status = row["status"]
+    cls = f" class='{esc(status)}'" if status != "ok" else ""
+    return f"<tr{cls}>{''.join(cells)}</tr>"
+
+
+def _unit_cell(column: str, metrics: dict) -> str:
+    unit, up = metrics.get(column, (_UNITS.get(column, ""), None))
+    if up is None:
+        return f"<th>{esc(unit)}</th>"
+    arrow, direction = ("↑", "higher") if up else ("↓", "lower")
+    return f"<th title='{direction} is better'>{esc(unit)} {arrow}</th>"
+
+
+def _reason(record: dict) -> str:
+    """The first line of a failed or skipped job's error, at most :data:`_REASON_CHARS`
+    characters, control characters shown escaped; empty for an ok job."""
+    if record.get("status") == "ok":
+        return ""
+    error = record.get("error")
+    lines = [line for line in str(error).splitlines() if line.strip()] if error else []
+    text = _printable(lines[0].strip()) if lines else "(no reason given)"
+    return text if len(text) <= _REASON_CHARS else text[:_REASON_CHARS - 1] + "…"
+
+
+def _printable(text: str) -> str:
+    """``text`` with control characters shown escaped (as ``bench.commands.one_line``)."""
+    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
+
+
+def _metric_info() -> dict[str, tuple[str, bool | None]]:
+    """Registered metric name -> (unit, higher_is_better); a plug-in that cannot be
+    loaded is left out (its column then shows no unit)."""
+    from bench.registry import registry
+
+    out = {}
+    for entry in registry("metric"):
+        if not entry.available:
+            continue
+        try:
+            metric = entry.load()
+        except Exception:  # noqa: BLE001, S112 (a broken plug-in: its values show, unitless)
+            continue
+        out[entry.name] = (str(metric.unit), metric.higher_is_better)
+    return out
+
+
+def _best_cells(table, directions: dict[str, bool]) -> set[tuple[int, str]]:
+    """(row position, column) of the best finite value of each metric with a direction
+    in each group of ok rows of one model, budget and shading; ties are all marked, and
+    a group whose values are all equal (or that has one value) marks none."""
+    import pandas as pd
+
+    best = set()
+    ok = table.reset_index(drop=True)
+    ok = ok[ok.status == "ok"]
+    for _, group in ok.groupby(["model", "target_faces", "shading"], sort=False):
+        for column, higher in directions.items():
+            values = pd.to_numeric(group[column], errors="coerce").astype(float)
+            values = values[np.isfinite(values)]
+            if values.nunique() < 2:
+                continue
+            target = values.max() if higher else values.min()
+            best.update((int(i), column) for i in values.index[values == target])
+    return best

@@ -1,0 +1,180 @@
+"""The report as a browser shows it: headless Chromium opens index.html from disk
+(file://), and the DOM it built is checked — the tables are there, every image and link
+points at a file inside the run folder, the sorting script runs — and a screenshot is
+kept in the test's folder.
+
+One small real run is shared by the module: a 320-face icosphere simplified by qslim at
+two budgets, and by a plug-in that raises (tests/plugins/misbehaving.py), so the summary
+has a failure to list first. The big run is that run's records and images copied to 13
+models (scripts/synthetic_run.py), past the 50 jobs above which each model gets a page.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+from html.parser import HTMLParser
+from pathlib import Path
+from urllib.parse import unquote, urlsplit
+
+import numpy as np
+import pytest
+
+from bench.io.meshio import save_mesh
+from conftest import icosphere
+
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(shutil.which("chromium") is None,
+                                 reason="Debian chromium not installed")]
+
+ROOT = Path(__file__).parent.parent
+PLUGINS = Path(__file__).parent / "plugins"
+
+
+def _bench(*args, cwd) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(PLUGINS), env.get("PYTHONPATH", "")])
+    env["BENCH_PLUGINS"] = "method:raise=misbehaving:Raise"
+    env["BENCH_CACHE"] = str(Path(cwd) / "cache")  # never the user's cache
+    return subprocess.run([sys.executable, "-m", "bench", *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=600, check=False)
+
+
+def _chromium(profile: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu",
+                           "--disable-quic", "--no-first-run", "--disable-background-networking",
+                           "--disable-component-update", "--disable-sync",
+                           f"--user-data-dir={profile}", *args],
+                          capture_output=True, text=True, timeout=120, check=True)
+
+
+class _Dom(HTMLParser):
+    """The elements of a dumped DOM: (tag, attributes) in document order, and the text
+    of each script."""
+
+    def __init__(self, text: str):
+        super().__init__()
+        self.elements: list[tuple[str, dict]] = []
+        self.scripts: list[str] = []
+        self._in_script = False
+        self.feed(text)
+
+    def handle_starttag(self, tag, attrs):
+        self.elements.append((tag, dict(attrs)))
+        self._in_script = tag == "script"
+
+    def handle_endtag(self, tag):
+        self._in_script = False
+
+    def handle_data(self, data):
+        if self._in_script:
+            self.scripts.append(data)
+
+    def all(self, tag: str) -> list[dict]:
+        return [attrs for t, attrs in self.elements if t == tag]
+
+
+def _dump(page: Path, profile: Path, fragment: str = "") -> str:
+    return _chromium(profile, "--dump-dom", page.as_uri() + fragment).stdout
+
+
+def _summary_rows(dom: str) -> list[str]:
+    """The body rows of the summary table of a dumped DOM, as HTML, in their order."""
+    table = dom[dom.index('<table id="summary"'):]
+    return table[table.index("<tbody>"):table.index("</tbody>")].split("<tr")[1:]
+
+
+def _target(run: Path, page: Path, url: str) -> Path:
+    """The file a relative URL of ``page`` names; it must lie inside ``run``."""
+    parts = urlsplit(url)
+    assert not parts.scheme and not parts.netloc, url  # no data:, no network
+    path = (page.parent / unquote(parts.path)).resolve()
+    assert path.is_relative_to(run.resolve()), url
+    return path
+
+
+def _broken(run: Path, page: Path, dom: _Dom) -> list[str]:
+    """Every <img> source and <a> link of ``dom`` that names no file of ``run``."""
+    urls = [a["src"] for a in dom.all("img")] + [a["href"] for a in dom.all("a")
+                                                 if not a["href"].startswith("#")]
+    return [url for url in urls if not _target(run, page, url).is_file()]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("browser")
+    save_mesh(icosphere(2, name="ico"), root / "ico.obj")  # 320 faces
+    proc = _bench("run", "--models", "ico.obj", "--methods", "qslim,raise", "--faces",
+                  "100,60", "--jobs", "1", "--out", "out", cwd=root)
+    assert proc.returncode == 1, proc.stderr  # the raising method failed, as it should
+    return root / "out"
+
+
+def test_the_report_opens_from_disk_with_no_broken_links(run, tmp_path):
+    page = run / "index.html"
+    text = _dump(page, tmp_path / "profile")
+    dom = _Dom(text)
+    tables = dom.all("table")
+    assert {"id": "summary", "class": "sortable"} in tables and len(tables) >= 2
+    rows = _summary_rows(text)
+    assert len(rows) == 4
+    assert all('class="failed"' in r for r in rows[:2])  # failures first, with the reason
+    assert all("deliberate failure" in r for r in rows[:2])
+    images = dom.all("img")
+    assert len(images) >= 3 + 2 * 12  # 3 plots, 2 sheets of 12 views
+    assert all(not a["src"].startswith("data:") for a in images)
+    assert all(a.get("loading") == "lazy" for a in images)
+    assert _broken(run, page, dom) == []
+    assert any("sortable and filterable" in s for s in dom.scripts)
+    assert dom.all("input")[0]["id"] == "filter"
+
+    shot = tmp_path / "report.png"
+    _chromium(tmp_path / "profile", "--window-size=1400,2400", f"--screenshot={shot}",
+              page.as_uri())
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(shot).convert("L"), float)
+    assert pixels.shape == (2400, 1400)
+    assert pixels.std() > 20 and (pixels < 100).mean() > 0.01  # text, tables, images
+
+
+def test_the_summary_sorts_in_the_browser(run, tmp_path):
+    """``#sort=-faces`` clicks the faces header twice: largest first, empty cells last."""
+    text = _dump(run / "index.html", tmp_path / "profile", "#sort=-faces")
+    assert ('<th aria-sort="descending">faces</th>' in text)
+    rows = _summary_rows(text)
+    assert "failed" not in rows[0] and "failed" in rows[-1]
+    assert "<td>100</td>" in rows[0] and "<td>60</td>" in rows[1]
+
+
+def _synthetic_run(source: Path, dest: Path, jobs: int, models: int) -> None:
+    spec = importlib.util.spec_from_file_location("synthetic_run",
+                                                  ROOT / "scripts" / "synthetic_run.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.synthesise(source, dest, jobs, models)
+
+
+def test_a_big_run_has_a_page_per_model(run, tmp_path):
+    big = tmp_path / "big"
+    _synthetic_run(run, big, jobs=51, models=13)  # 52 jobs
+    proc = _bench("report", big, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    pages = sorted(big.glob("model-*.html"))
+    assert len(pages) == 13
+    index = _Dom(_dump(big / "index.html", tmp_path / "profile"))
+    assert index.all("img") == []  # the index holds the table and the links only
+    assert {a["href"] for a in index.all("a")} >= {p.name for p in pages}
+    assert _broken(big, big / "index.html", index) == []
+    shown = {}  # model page -> the models whose results it shows
+    for page in pages[:3]:
+        dom = _Dom(_dump(page, tmp_path / "profile"))
+        assert _broken(big, page, dom) == []
+        folders = [unquote(a["src"]).split("/")[-2] for a in dom.all("img")
+                   if "/thumbs/" in a["src"] and "original__" not in a["src"]]
+        shown[page.name] = {f.split("__")[0] for f in folders}
+    assert all(len(models) == 1 for models in shown.values()), shown
+    assert len(set.union(*shown.values())) == 3
