@@ -33,7 +33,7 @@ def planned(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     jobs = []
     monkeypatch.setattr(run_command, "execute", lambda js, *a, **k: jobs.extend(js))
-    monkeypatch.setattr(run_command, "finish", lambda out, build_report=True: 0)
+    monkeypatch.setattr(run_command, "finish", lambda out, **options: 0)
 
     def bench_run(*args):
         jobs.clear()
