@@ -10,10 +10,13 @@ problem                    outcome
 no faces                   error (a point cloud cannot be simplified)
 NaN / inf positions        error
 NaN / inf / huge UVs       error (in a file; NaN UVs given as arrays: dropped, warning)
-face index out of range    error
-non-triangle faces         triangulated by the loader, warning with count
-degenerate faces           dropped, warning with count
+face index out of range    error (also a vt or vn index, with the OBJ line)
+truncated PLY              error
+non-triangle faces         triangulated by the loader (concave: ear clipping), warning
+faces of 1 or 2 corners    left out by the loader, warning with count
+degenerate faces           dropped, warning with count (judged scale-free)
 missing texture image      warning, mesh loaded untextured (UVs kept)
+unreadable texture image   the same (empty, corrupt, a directory), with the reason
 non-manifold edges         allowed, warning with count
 several materials          one texture atlas (:mod:`bench.io.atlas`)
 a material's texture gone  warning, that material uses its colour
