@@ -221,8 +221,23 @@ class Mesh:
 # -- free functions ---------------------------------------------------------------------
 
 def face_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unit normals of triangles, ndarray of shape (m, 3); zero rows for zero area."""
-    return _normalize(np.cross(*_edge_vectors(positions, faces)))
+    """Unit normals of triangles, ndarray of shape (m, 3); zero rows for zero area.
+
+    Each face's edge vectors, and then their cross product, are scaled by a power of
+    two to a largest component in [0.5, 1) first, so the products neither overflow
+    (coordinates of 1e200) nor underflow (1e-150) and a real triangle never passes for
+    a degenerate one. Scaling by a power of two is exact: at ordinary magnitudes the
+    normals are bit for bit those of the plain formula."""
+    a, b = _edge_vectors(positions, faces)
+    largest = np.maximum(np.abs(a).max(axis=1, initial=0), np.abs(b).max(axis=1, initial=0))
+    cross = np.cross(_unit_scale(a, largest), _unit_scale(b, largest))
+    return _normalize(_unit_scale(cross, np.abs(cross).max(axis=1, initial=0)))
+
+
+def _unit_scale(v: np.ndarray, largest: np.ndarray) -> np.ndarray:
+    """Rows of ``v`` times 2**-e, where ``largest`` (per row) is m * 2**e, 0.5 <= m < 1."""
+    exponent = np.frexp(np.where(np.isfinite(largest), largest, 0.0))[1]
+    return np.ldexp(v, -exponent[:, None])
 
 
 def face_areas(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -126,7 +126,9 @@ def run_method(method: Method, mesh: Mesh, target_faces: int, ctx: Any = None) -
 
     A target at or above the input's face count returns the input unchanged (with a
     warning), since no simplification can reach it. A result outside
-    :func:`target_tolerance` without a reason from the method gets one recorded.
+    :func:`target_tolerance` without a reason from the method gets one recorded. An
+    empty result is a :class:`MethodError`: a method that cannot go lower stops above
+    the target and says why.
     """
     if target_faces >= mesh.n_faces:
         warnings.warn(f"target of {target_faces} faces is not below the input's "
@@ -143,6 +145,10 @@ def run_method(method: Method, mesh: Mesh, target_faces: int, ctx: Any = None) -
         raise MethodError(f"method '{method.name}' failed on {mesh.name}: "
                           f"{type(exc).__name__}: {lines[-1] if lines else ''}"
                           " (run with --debug for the traceback)") from exc
+    if result.mesh.n_faces == 0:
+        raise MethodError(f"method '{method.name}' returned no faces for a target of "
+                          f"{target_faces} on {mesh.name}; it must stop at the fewest faces "
+                          "it can keep and say so (stop_reason)")
     result.stats.setdefault("wall_seconds", time.perf_counter() - wall)
     result.stats.setdefault("cpu_seconds", time.process_time() - cpu)
     reached = result.mesh.n_faces

@@ -20,7 +20,7 @@ from bench.errors import InputError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
 
-__all__ = ["QSlim", "QSlimTexture", "FastSimplification"]
+__all__ = ["FastSimplification", "QSlim", "QSlimTexture", "fewest_faces"]
 
 
 @dataclass
@@ -69,6 +69,10 @@ class QSlim(Method):
     Params = QSlimParams
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
+        result, reason = fewest_faces(lambda t: self._decimate(mesh, t), target_faces, mesh)
+        return SimplifyResult(result, {"backend": _pymeshlab_version()}, stop_reason=reason)
+
+    def _decimate(self, mesh: Mesh, target_faces: int) -> Mesh:
         import pymeshlab
 
         kwargs = {}
@@ -86,9 +90,8 @@ class QSlim(Method):
         colors = None
         if mesh.colors is not None:
             colors = np.clip(np.rint(out.vertex_color_matrix() * 255), 0, 255).astype(np.uint8)
-        result = mesh.replace(positions=out.vertex_matrix(), faces=out.face_matrix(), uv=uv,
-                              colors=colors, normals=None)
-        return SimplifyResult(result, {"backend": _pymeshlab_version()})
+        return mesh.replace(positions=out.vertex_matrix(), faces=out.face_matrix(), uv=uv,
+                            colors=colors, normals=None)
 
 
 class QSlimTexture(Method):
@@ -150,6 +153,12 @@ class FastSimplification(Method):
         preserve_border: bool = False
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
+        result, reason = fewest_faces(lambda t: self._decimate(mesh, t), target_faces, mesh)
+        return SimplifyResult(result, {"backend": "fast-simplification",
+                                       "attributes_dropped": mesh.uv is not None},
+                              stop_reason=reason)
+
+    def _decimate(self, mesh: Mesh, target_faces: int) -> Mesh:
         import fast_simplification
 
         p = self.params
@@ -161,9 +170,31 @@ class FastSimplification(Method):
             positions, faces, target_count=int(target_faces), agg=float(p.agg), verbose=False,
             return_collapses=False, lossless=False, preserve_border=bool(p.preserve_border))
         points, tris = _drop_unreferenced(points, tris)
-        result = Mesh(points, tris, name=mesh.name, metadata=dict(mesh.metadata))
-        return SimplifyResult(result, {"backend": "fast-simplification",
-                                       "attributes_dropped": mesh.uv is not None})
+        return Mesh(points, tris, name=mesh.name, metadata=dict(mesh.metadata))
+
+
+def fewest_faces(decimate, target: int, mesh: Mesh) -> tuple[Mesh, str | None]:
+    """``decimate(target)``, and a stop reason when the backend leaves no face there.
+
+    QSlim and fast-simplification go down to an empty mesh when asked for fewer faces
+    than the surface can keep (1 face of a closed mesh). Then the target is raised
+    (by 1, 2, 4, ... faces, below the input's count) until a result has faces, which is
+    returned with the reason; when none has, the input itself is. An empty result is
+    never returned.
+    """
+    result = decimate(target)
+    if result.n_faces > 0:
+        return result, None
+    step, tried = 1, target
+    while target + step < mesh.n_faces:
+        tried = target + step
+        result = decimate(tried)
+        if result.n_faces > 0:
+            return result, (f"the backend leaves no faces at a target of {target}; stopped at "
+                            f"{result.n_faces} faces, the fewest it leaves (target {tried})")
+        step *= 2
+    return mesh, (f"the backend leaves no faces at any target from {target} to {tried}; "
+                  f"returned the input's {mesh.n_faces} faces")
 
 
 def split_wedges(positions: np.ndarray, faces: np.ndarray, wedge_uv: np.ndarray):

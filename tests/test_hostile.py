@@ -1,5 +1,5 @@
-"""A hostile-input corpus: bad or odd arguments, run folders, records and baselines given
-to ``bench`` as a user would, in a subprocess.
+"""A hostile-input corpus: bad or odd arguments, run folders, records, baselines and mesh
+files given to ``bench`` as a user would, in a subprocess.
 
 Every case is generated here at test time (no binary blobs) in a folder of its own, and
 says what it expects: a clean error (exit code 2, exactly one line on stderr,
@@ -27,6 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bench.harness.report import SCRIPT as PAGE_SCRIPT
@@ -361,6 +362,212 @@ case("run two models named mesh.obj", "run", "--models", "A/mesh.obj,B/mesh.obj"
      expect="ok", files=two_meshes, pattern=r"^bench: 2 jobs", after=two_records, slow=True)
 
 
+# -- bench simplify: the input's files, and inputs that load wrong ---------------------------
+
+SIMPLIFY = ("simplify", "-m", "qslim")
+TET_OBJ = "".join(f"v {x:g} {y:g} {z:g}\n" for x, y, z in TET_POSITIONS) + \
+    "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in TET_FACES)
+TEXTURED_OBJ = ("mtllib {mtl}\nusemtl t\n"
+                + "".join(f"v {x:g} {y:g} {z:g}\n" for x, y, z in TET_POSITIONS)
+                + "vt 0 0\nvt 1 0\nvt 0 1\n"
+                + "".join(f"f {a + 1}/{a % 3 + 1} {b + 1}/{b % 3 + 1} {c + 1}/{c % 3 + 1}\n"
+                          for a, b, c in TET_FACES))
+GREY16 = [[0, 257, 1000, 65535], [128, 32768, 40000, 65280]]  # a 16-bit grey texture
+
+
+def text_file(name: str, text: str | bytes) -> Callable[[Path], None]:
+    def make(folder: Path) -> None:
+        data = text.encode() if isinstance(text, str) else text
+        (folder / name).write_bytes(data)
+    return make
+
+
+def textured(obj: str = "in.obj", mtl: str = "in.mtl", texture: str = "tex.png",
+             image: bytes | str | None = None, uv: str = "") -> Callable[[Path], None]:
+    """A textured tetrahedron ``obj`` whose ``mtl`` names ``texture``: an 8-bit PNG, the
+    16-bit grey GREY16 (``image="grey16"``), raw bytes, or a folder (``image="folder"``);
+    ``uv`` replaces the second texture coordinate's line."""
+    def make(folder: Path) -> None:
+        from PIL import Image
+
+        text = TEXTURED_OBJ.format(mtl=mtl)
+        if uv:
+            text = text.replace("vt 1 0\n", uv + "\n")
+        (folder / obj).write_text(text)
+        (folder / mtl).write_text(f"newmtl t\nKd 1 1 1\nmap_Kd {texture}\n")
+        if image == "folder":
+            (folder / texture).mkdir()
+        elif image == "grey16":
+            Image.fromarray(np.array(GREY16, dtype=np.uint16)).save(folder / texture)
+        elif image is not None:
+            (folder / texture).write_bytes(image)
+        else:
+            Image.new("RGB", (4, 4), (200, 100, 50)).save(folder / texture)
+    return make
+
+
+def scaled_tet(scale: float) -> str:
+    return "".join(f"v {x * scale!r} {y * scale!r} {z * scale!r}\n"
+                   for x, y, z in TET_POSITIONS.tolist()) \
+        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in TET_FACES)
+
+
+def ascii_ply(cut: Callable[[list[str]], list[str]]) -> Callable[[Path], None]:
+    """icosphere(3) (642 vertices, 1280 faces) as an ASCII PLY, its lines passed
+    through ``cut``."""
+    def make(folder: Path) -> None:
+        import trimesh
+
+        ico = icosphere(3)
+        data = trimesh.Trimesh(ico.positions, ico.faces, process=False).export(
+            file_type="ply", encoding="ascii")
+        lines = (data if isinstance(data, str) else data.decode()).splitlines()
+        (folder / "trunc.ply").write_text("\n".join(cut(lines)) + "\n")
+    return make
+
+
+def header_end(lines: list[str]) -> int:
+    return lines.index("end_header") + 1
+
+
+def loads_back(name: str, check: Callable) -> Callable:
+    """An ``after`` check: the written ``name`` loads, and ``check(mesh)`` holds."""
+    def after(folder: Path, proc) -> None:
+        from bench.io.meshio import load_mesh
+
+        check(load_mesh(folder / name))
+    return after
+
+
+def area_is(expected: float) -> Callable:
+    def check(mesh) -> None:
+        from bench.mesh import face_areas
+
+        assert face_areas(mesh.positions, mesh.faces).sum() == expected
+    return check
+
+
+def same_positions(scale: float) -> Callable:
+    def check(mesh) -> None:
+        assert mesh.n_faces == 4
+        assert sorted(map(tuple, mesh.welded.positions.tolist())) == \
+            sorted(map(tuple, (TET_POSITIONS * scale).tolist()))
+    return check
+
+
+def grey16_scaled(folder: Path, proc) -> None:
+    from PIL import Image
+
+    written = np.asarray(Image.open(folder / "out.png"))
+    expected = np.rint(np.array(GREY16) * 255 / 65535).astype(np.uint8)
+    assert written.shape == (2, 4, 3)
+    np.testing.assert_array_equal(written, np.repeat(expected[..., None], 3, axis=-1))
+
+
+def faces_written(n: int) -> Callable:
+    def check(mesh) -> None:
+        assert mesh.n_faces == n
+    return check
+
+
+def ico_obj(folder: Path) -> None:
+    save_mesh(icosphere(1, name="ico"), folder / "ico.obj")
+
+
+# 3: the input's files are never written over by accident
+case("simplify OUT is IN", *SIMPLIFY, "in.obj", "in.obj", "--faces", "2", files=textured(),
+     absent=(), pattern=r"^in\.obj: is the input's mesh file \(in\.obj\); choose another "
+     r"output name, or give --force to replace it$")
+case("simplify OUT is IN by another path", *SIMPLIFY, "in.obj", "./sub/../in.obj", "--faces", "2",
+     files=both(textured(), lambda d: (d / "sub").mkdir()), absent=(),
+     pattern=r"^sub/\.\./in\.obj: is the input's mesh file \(in\.obj\)")
+for force in ((), ("--force",)):
+    case(f"simplify OUT named after IN's texture {' '.join(force)}", *SIMPLIFY, "in.obj",
+         "tex.obj", "--faces", "2", *force, files=textured(image="grey16"),
+         absent=("tex.obj", "tex.mtl"),
+         pattern=r"^tex\.png: is the input's texture \(tex\.png\), which is never written over, "
+         r"not even with --force; choose another output name")
+case("simplify OUT's MTL is IN's MTL", *SIMPLIFY, "in.obj", "shared.obj", "--faces", "2",
+     files=textured(mtl="shared.mtl"), absent=("shared.obj", "shared.png"),
+     pattern=r"^shared\.mtl: is the input's material file \(shared\.mtl\); choose another "
+     r"output name, or give --force")
+case("simplify LOD chain over IN", *SIMPLIFY, "m_LOD1.obj", "m.obj", "--faces", "3,2",
+     files=text_file("m_LOD1.obj", TET_OBJ), absent=("m_LOD0.obj", "m_LOD2.obj", "m.obj.lods.json"),
+     pattern=r"^m_LOD1\.obj: is the input's mesh file \(m_LOD1\.obj\)")
+
+# 5: valid inputs load right, invalid ones are refused
+case("simplify truncated ASCII PLY", *SIMPLIFY, "trunc.ply", "out.obj", "--faces", "100",
+     files=ascii_ply(lambda lines: lines[:header_end(lines) + 642 + 303]),
+     pattern=r"^trunc\.ply: 945 data lines where its header declares 1922 elements; the file "
+     r"is truncated$")
+case("simplify ASCII PLY cut in its last line", *SIMPLIFY, "trunc.ply", "out.obj", "--faces",
+     "100", files=ascii_ply(lambda lines: lines[:-1] + [lines[-1].rsplit(" ", 2)[0]]),
+     pattern=r"^trunc\.ply: its last element \(line 1922 of the data\) is incomplete; the file "
+     r"is truncated$")
+for scale in (1e100, 1e150, 1e300):
+    case(f"simplify coordinates of {scale:g}", *SIMPLIFY, "big.obj", "out.obj", "--faces", "4",
+         expect="ok", files=text_file("big.obj", scaled_tet(scale)),
+         pattern=r"^big: 4 -> 4 faces", after=loads_back("out.obj", same_positions(scale)))
+case("simplify coordinates of 1e100 to 32-bit floats", "simplify", "big.obj", "out.ply",
+     "-m", "fast-simplification", "--faces", "2", files=text_file("big.obj", scaled_tet(1e100)),
+     pattern=r"^out\.ply: coordinates up to 1e\+100 do not fit the 32-bit floats PLY is "
+     r"written with; write \.obj or \.off, or scale the mesh$")
+for ext, storage in ((".obj", "10 decimals OBJ"), (".glb", "32-bit floats GLB")):
+    case(f"simplify coordinates of 1e-150 to {ext}", "simplify", "tiny.obj", f"out{ext}",
+         "-m", "fast-simplification", "--faces", "2", files=text_file("tiny.obj", scaled_tet(1e-150)),
+         pattern=rf"^out\{ext}: all 4 faces would collapse to zero area in the {storage} is "
+         r"written with \(coordinates too small for them\); scale the mesh first$")
+case("simplify concave polygon", *SIMPLIFY, "concave.obj", "out.obj", "--faces", "3",
+     expect="ok", files=text_file("concave.obj", "v 0 0 0\nv 4 0 0\nv 4 4 0\nv 2 1 0\nv 0 4 0\n"
+                                                 "f 1 2 3 4 5\n"),
+     pattern=r"^bench: warning: concave\.obj: triangulated 1 faces with more than 3 corners "
+     r"\(1 concave, by ear clipping\)$", after=loads_back("out.obj", area_is(10.0)))
+case("simplify faces with 1 and 2 corners", *SIMPLIFY, "short.obj", "out.obj", "--faces", "4",
+     expect="ok", files=text_file("short.obj", TET_OBJ + "f 1 2\nf 3\n"),
+     pattern=r"^bench: warning: short\.obj: ignored 2 faces with fewer than 3 corners \(first "
+     r"on line 9\)$", after=loads_back("out.obj", faces_written(4)))
+case("simplify vt index out of range", *SIMPLIFY, "vt.obj", "out.obj", "--faces", "2",
+     files=text_file("vt.obj", TET_OBJ.replace("f 1 3 2", "f 1/1 3/1 2/9").replace(
+         "v 0 0 1\n", "v 0 0 1\nvt 0 0\nvt 1 0\n")),
+     pattern=r"^vt\.obj: line 7: texture coordinate index 9 is out of range \(the file has 2 "
+     r"texture coordinates\); the file is corrupt or truncated$")
+case("simplify vn index out of range", *SIMPLIFY, "vn.obj", "out.obj", "--faces", "2",
+     files=text_file("vn.obj", TET_OBJ.replace("f 1 2 4", "f 1//1 2//1 4//-2").replace(
+         "v 0 0 1\n", "v 0 0 1\nvn 0 0 1\n")),
+     pattern=r"^vn\.obj: line 7: normal index -2 is out of range \(1 normals defined before "
+     r"it\); the file is corrupt or truncated$")
+case("simplify Latin-1 OBJ", *SIMPLIFY, "latin.obj", "out.obj", "--faces", "4", expect="ok",
+     files=text_file("latin.obj", "# mod\xe8le export\xe9\n".encode("latin-1") + TET_OBJ.encode()),
+     pattern=r"^latin: 4 -> 4 faces", after=loads_back("out.obj", faces_written(4)))
+
+# 6: texture problems are reported
+for name, image, reason in (
+        ("corrupt", b"\x89PNG\r\n\x1a\nrubbish", r"tex\.png cannot be read as an image: .+"),
+        ("empty", b"", r"tex\.png is empty"),
+        ("a folder", "folder", r"tex\.png is a directory")):
+    case(f"simplify texture {name}", *SIMPLIFY, "in.obj", "out.obj", "--faces", "4", expect="ok",
+         files=textured(image=image),
+         pattern=rf"^bench: warning: in\.obj: texture image unreadable \({reason}\); loading "
+         r"untextured \(UVs kept\)$")
+case("simplify 16-bit texture", *SIMPLIFY, "in.obj", "out.obj", "--faces", "4", expect="ok",
+     files=textured(image="grey16"), pattern=r"^in: 4 -> 4 faces", creates=("out.png",),
+     after=grey16_scaled)
+for value in ("1e300 1e300", "nan 0"):
+    shown = "1e+300 1e+300" if value.startswith("1e") else value
+    case(f"simplify UV {value}", *SIMPLIFY, "in.obj", "out.obj", "--faces", "2",
+         files=textured(uv=f"vt {value}"),
+         pattern=rf"^in\.obj: line 8: texture coordinate {re.escape(shown)} is not finite or "
+         r"beyond 1e\+06 in magnitude; the file is corrupt$")
+
+# 7: no empty result passes for a success
+for method, target in (("qslim", ("--faces", "1")), ("fast-simplification", ("--ratio", "1e-9"))):
+    case(f"simplify {method} {' '.join(target)}", "simplify", "ico.obj", "out.obj", "-m", method,
+         *target, expect="ok", files=ico_obj,
+         pattern=r"^bench: note: stopped short: the backend leaves no faces at a target of 1; "
+         r"stopped at 2 faces, the fewest it leaves \(target 2\)$",
+         after=loads_back("out.obj", faces_written(2)))
+
+
 # -- running the corpus ----------------------------------------------------------------------
 
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
@@ -440,6 +647,21 @@ def test_corpus_counts():
     print(f"\nhostile corpus: {len(CASES)} cases: {counts['error']} clean errors, "
           f"{counts['ok']} correct results")
     assert set(counts) <= {"error", "ok"}
+
+
+def test_force_writes_over_the_input_mesh_and_material_not_its_texture(tmp_path):
+    """OUT = IN with --force replaces the mesh and its MTL (the corpus keeps inputs
+    unchanged, so this runs here); the input's texture, named apart, is kept."""
+    textured()(tmp_path)
+    texture = (tmp_path / "tex.png").read_bytes()
+    proc = subprocess.run([sys.executable, "-m", "bench", "simplify", "in.obj", "in.obj", "-m",
+                           "qslim", "--faces", "2", "--force"], cwd=tmp_path, env=ENV,
+                          capture_output=True, text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert re.search(r"^in: 4 -> 2 faces .*; wrote in\.obj, in\.png, in\.mtl$", proc.stdout), \
+        proc.stdout
+    assert (tmp_path / "tex.png").read_bytes() == texture
+    assert "map_Kd in.png" in (tmp_path / "in.mtl").read_text()
 
 
 # -- Ctrl-C in bench run ---------------------------------------------------------------------

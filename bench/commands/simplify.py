@@ -14,7 +14,10 @@ level the target, the faces obtained, the level it was made from, the method wit
 version and parameters, its stop reason, its own error where it reports one
 (meshoptimizer's result_error, against the level's source), the seconds and, with
 --evaluate, the protocol's figures (d_rms, FLIP, Hausdorff, ...) against the input.
-Existing files are overwritten, as for a single level, which writes OUT alone.
+Existing files are overwritten, as for a single level, which writes OUT alone, except
+the input's own: a file the input is read from (the mesh, its MTL, a glTF's buffers) is
+written over only with --force, and one of its textures never (choose another OUT: the
+written textures are named after it). Nothing is written then.
 """
 
 from __future__ import annotations
@@ -25,7 +28,15 @@ import time
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.io.meshio import SCENE_FORMATS, check_output_path, lod_path, save_lods, save_mesh
+from bench.io.meshio import (
+    SCENE_FORMATS,
+    check_not_inputs,
+    check_output_path,
+    input_files,
+    lod_path,
+    save_lods,
+    save_mesh,
+)
 from bench.method import parse_params, resolve_target, run_method
 from bench.models import resolve_model
 from bench.registry import registry
@@ -53,6 +64,9 @@ def add_parser(sub, name: str) -> None:
                    "level, slow on a CPU-only machine")
     p.add_argument("--param", "-p", action="append", default=[], metavar="KEY=VALUE",
                    help="method parameter (repeatable)")
+    p.add_argument("--force", action="store_true",
+                   help="write over the input's mesh and material files if OUT names them "
+                   "(its textures are never written over)")
     p.set_defaults(run=run)
 
 
@@ -82,10 +96,11 @@ def run(args) -> int:
                          "two or more levels (--faces N1,N2,... or --ratios r1,r2,...)"
                          + ("" if args.chain else "; `bench run` evaluates a single result"))
     mesh = resolve_model(args.input)
+    inputs = _inputs(mesh, [Path(args.output)], args.force)
     target = resolve_target(mesh.n_faces, faces[0] if faces else None,
                             ratios[0] if ratios else None)
     result = run_method(method_cls(params), mesh, target)
-    written = save_mesh(result.mesh, args.output)
+    written = save_mesh(result.mesh, args.output, inputs=inputs, force=args.force)
     seconds = result.stats.get("wall_seconds", 0.0)
     print(f"{mesh.name}: {mesh.n_faces} -> {result.mesh.n_faces} faces "
           f"({result.mesh.n_vertices} vertices) with {method_cls.name} in {seconds:.3f} s; "
@@ -108,6 +123,9 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
     if sidecar_path(out).is_dir():
         raise InputError(f"{sidecar_path(out)}: is a directory; the chain's sidecar goes there")
     mesh = resolve_model(args.input)
+    inputs = _inputs(mesh, [out] if out.suffix.lower() in SCENE_FORMATS else
+                     [lod_path(out, level_name(i)) for i in range(len(faces or ratios) + 1)],
+                     args.force)
     targets = level_targets(mesh.n_faces, faces, ratios)
     method = method_cls(params)
     protocol = Protocol() if args.evaluate else None
@@ -132,7 +150,7 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
                           progress=True, on_level=report)
     seconds = time.perf_counter() - start
     files = save_lods([(level_name(0), mesh)] + [(lv.name, lv.result.mesh) for lv in levels],
-                      out)
+                      out, inputs=inputs, force=args.force)
     record = sidecar(mesh, method, levels, args.chain, files, protocol, seconds=seconds,
                      source=args.input)
     side = write_record(sidecar_path(out), record, sort_keys=False)
@@ -145,3 +163,12 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
             print(f"bench: note: {level.name} stopped short: {level.result.stop_reason}",
                   file=sys.stderr)
     return 0
+
+
+def _inputs(mesh, outputs: list[Path], force: bool) -> list:
+    """The files ``mesh`` was read from (:func:`bench.io.meshio.input_files`), after
+    refusing, before the work, an output mesh file that is one of them; the writer
+    checks every file it writes (materials, textures) again."""
+    inputs = input_files(mesh.metadata.get("source"))
+    check_not_inputs(outputs, inputs, force)
+    return inputs

@@ -51,11 +51,11 @@ import numpy as np
 
 from bench.errors import InputError
 from bench.io.atlas import split_materials
-from bench.io.validate import build_mesh, warn
+from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
 from bench.mesh import Mesh
 
-__all__ = ["FORMATS", "SCENE_FORMATS", "check_output_path", "load_mesh", "lod_path", "save_lods",
-           "save_mesh"]
+__all__ = ["FORMATS", "SCENE_FORMATS", "check_not_inputs", "check_output_path", "input_files",
+           "load_mesh", "lod_path", "save_lods", "save_mesh"]
 
 #: Supported file extensions and what they keep.
 FORMATS = {
@@ -105,7 +105,12 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
     import trimesh
 
     try:
-        scene = trimesh.load_scene(str(path), process=False, skip_materials=False)
+        if scan.get("text") is not None:  # re-encoded as UTF-8, or polygons ear-clipped
+            scene = trimesh.load_scene(io.BytesIO(scan["text"].encode("utf-8")),
+                                       file_type="obj", resolver=_TextResolver(str(path)),
+                                       process=False, skip_materials=False)
+        else:
+            scene = trimesh.load_scene(str(path), process=False, skip_materials=False)
         keys = _material_keys(scene, ext, scan)
         several = len(set(keys.values())) > 1 and any(k is not None for k in keys.values())
         # one material: what trimesh.load(force="mesh") returns, as always
@@ -119,33 +124,56 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         raise InputError(f"{source}: the mesh has no faces (a point cloud or line set "
                          "cannot be simplified); export it with its triangles")
 
-    if scan.get("polygons"):
-        warn(f"{source}: triangulated {scan['polygons']} faces with more than 3 corners")
+    _warn_faces(source, scan)
+    if scan.get("ply_vertices") is not None and len(loaded.vertices) < scan["ply_vertices"]:
+        raise InputError(f"{source}: only {len(loaded.vertices)} of the "
+                         f"{scan['ply_vertices']} vertices its header declares could be read; "
+                         "the file is corrupt or truncated")
+    if scan.get("ply_faces") is not None and len(loaded.faces) < scan["ply_faces"]:
+        raise InputError(f"{source}: only {len(loaded.faces)} of the {scan['ply_faces']} faces "
+                         "its header declares could be read; the file is corrupt or truncated")
     if scan.get("ply_faces") is not None and len(loaded.faces) > scan["ply_faces"]:
         warn(f"{source}: triangulated polygon faces ({scan['ply_faces']} faces in the file "
              f"became {len(loaded.faces)} triangles)")
 
     uv, texture, colors, normals = _attributes(loaded, source, ext, scan)
+    if uv is not None:
+        _check_file_uv(uv, source, path if ext == ".obj" else None)
     return build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
                       colors=colors, texture=texture, name=name or path.stem,
                       metadata={"source": source})
 
 
-def save_mesh(mesh: Mesh, path: str | os.PathLike) -> list[Path]:
+def save_mesh(mesh: Mesh, path: str | os.PathLike, *, inputs: list | None = None,
+              force: bool = False) -> list[Path]:
     """Write ``mesh`` to ``path``; the format follows the extension.
 
     OBJ writes ``<stem>.mtl`` and ``<stem>.png`` beside the OBJ when the mesh is
     textured, so several results can share a folder. Returns the files written.
+
+    ``inputs`` are the files the mesh was read from (:func:`input_files`): none of them
+    is overwritten unless ``force``, and a texture among them never is (InputError,
+    before anything is written). Texture coordinates that are not finite or beyond
+    :data:`~bench.io.validate.UV_LIMIT` are refused too.
     """
     path = check_output_path(path)
+    return _commit(_mesh_files(mesh, path), inputs, force)
+
+
+def _mesh_files(mesh: Mesh, path: Path) -> list[tuple[Path, bytes]]:
+    """The files (path, content) that hold ``mesh`` written to ``path``."""
+    if mesh.uv is not None:
+        check_uv(mesh.uv, str(path))
     ext = path.suffix.lower()
+    split = None
     if ext == ".obj" or ext in SCENE_FORMATS:
         split = split_materials(mesh, source=str(path))
         if split is not None and ext == ".obj":
-            return _save_obj_materials(mesh, split, path)
-        if split is not None:
-            scene, groups = _scene([(path.stem, mesh, split)], path.stem)
-            return _write_export(scene, path, tree_postprocessor=_one_mesh_per_group(groups))
+            return _obj_material_files(mesh, split, path)  # exact digits
+    _check_storable(mesh, path, str(path))
+    if split is not None:
+        scene, groups = _scene([(path.stem, mesh, split)], path.stem)
+        return _export_files(scene, path, tree_postprocessor=_one_mesh_per_group(groups))
     tm = _to_trimesh(mesh, material_name=path.stem)
     if ext == ".obj":
         from trimesh.exchange.obj import export_obj
@@ -153,11 +181,117 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike) -> list[Path]:
         text, files = export_obj(tm, include_normals=mesh.normals is not None,
                                  include_texture=True, return_texture=True,
                                  mtl_name=f"{path.stem}.mtl", digits=10)
-        written = [_write_atomic(path, text.encode())]
-        for fname, data in files.items():
-            written.append(_write_atomic(path.parent / fname, data))
-        return written
-    return _write_export(tm, path)
+        return [(path, text.encode())] + [(path.parent / fname, data)
+                                          for fname, data in files.items()]
+    return _export_files(tm, path)
+
+
+#: How each format stores a coordinate: trimesh writes 32-bit floats, and OBJ and OFF
+#: text with 10 decimals (an OBJ with several materials is written exactly).
+_STORAGE = {".ply": "32-bit floats", ".stl": "32-bit floats", ".glb": "32-bit floats",
+            ".gltf": "32-bit floats", ".obj": "10 decimals", ".off": "10 decimals"}
+
+
+def _check_storable(mesh: Mesh, path: Path, source: str) -> None:
+    """InputError when ``path``'s format cannot hold ``mesh``'s coordinates: they would
+    become infinite (beyond 3.4e38 in 32-bit floats) or every face would collapse to
+    zero area (coordinates too small for the format's precision); a warning with the
+    count when some faces would. Ordinary meshes pass."""
+    from bench.mesh import face_normals
+
+    ext = path.suffix.lower()
+    with np.errstate(over="ignore", under="ignore"):
+        if _STORAGE[ext] == "32-bit floats":
+            stored = mesh.positions.astype(np.float32).astype(np.float64)
+        else:
+            # at 4.5e5 and beyond a double has no bit below 1e-10 (and rounding there
+            # would overflow at 1e298)
+            small = np.abs(mesh.positions) < 1e6
+            stored = np.where(small, np.round(np.where(small, mesh.positions, 0), 10),
+                              mesh.positions)
+    name = ext[1:].upper()
+    if not np.isfinite(stored).all():
+        big = float(np.abs(mesh.positions).max())
+        raise InputError(f"{source}: coordinates up to {big:g} do not fit the {_STORAGE[ext]} "
+                         f"{name} is written with; write .obj or .off, or scale the mesh")
+    if np.array_equal(stored, mesh.positions):
+        return
+    before = face_normals(mesh.positions, mesh.faces).any(axis=1)
+    lost = before & ~face_normals(stored, mesh.faces).any(axis=1)
+    if lost.all():
+        raise InputError(f"{source}: all {len(lost)} faces would collapse to zero area in "
+                         f"the {_STORAGE[ext]} {name} is written with (coordinates too "
+                         "small for them); scale the mesh first")
+    if lost.any():
+        warn(f"{source}: {int(lost.sum())} faces collapse to zero area in the "
+             f"{_STORAGE[ext]} {name} is written with")
+
+
+def input_files(source: str | os.PathLike | None) -> list[tuple[Path, str]]:
+    """The files a mesh file ``source`` is made of, each with its kind: the file itself
+    (``"mesh"``), an OBJ's material files (``"material"``) and the images they name
+    (``"texture"``), a glTF's buffers (``"buffer"``) and images (``"texture"``). Only
+    those that exist; none for a ``source`` that is not a file (a procedural model)."""
+    if source is None or not Path(source).is_file():
+        return []
+    path = Path(source)
+    ext = path.suffix.lower()
+    files = [(path, "mesh")]
+    if ext == ".obj":
+        files = _scan_obj(path)["files"]
+    elif ext == ".gltf":
+        import json
+        from urllib.parse import unquote
+
+        try:
+            tree = json.loads(path.read_bytes())
+        except (ValueError, OSError):
+            tree = {}
+        for key, kind in (("buffers", "buffer"), ("images", "texture")):
+            for item in tree.get(key, []) if isinstance(tree, dict) else []:
+                uri = item.get("uri") if isinstance(item, dict) else None
+                if isinstance(uri, str) and not uri.startswith("data:"):
+                    files.append((path.parent / unquote(uri), kind))
+    return [(p, kind) for p, kind in files if p.is_file()]
+
+
+def check_not_inputs(targets: list[Path], inputs: list | None, force: bool) -> None:
+    """InputError if one of ``targets`` is one of ``inputs`` (:func:`input_files`):
+    always for a texture, else unless ``force``. Files are compared as the file system
+    sees them (a link or another spelling of the path is the same file)."""
+    taken = {}
+    for source, kind in inputs or ():
+        try:
+            st = os.stat(source)
+        except OSError:
+            continue
+        taken[(st.st_dev, st.st_ino)] = (source, kind)
+    for target in targets:
+        try:
+            st = os.stat(target)
+        except OSError:
+            continue
+        hit = taken.get((st.st_dev, st.st_ino))
+        if hit is None:
+            continue
+        source, kind = hit
+        if kind == "texture":
+            raise InputError(f"{target}: is the input's texture ({source}), which is never "
+                             "written over, not even with --force; choose another output "
+                             "name (textures are named after it)")
+        if not force:
+            raise InputError(f"{target}: is the input's {kind} file ({source}); choose "
+                             "another output name, or give --force to replace it")
+
+
+def _commit(files: list[tuple[Path, bytes]], inputs: list | None, force: bool) -> list[Path]:
+    """Write ``files`` (each atomically) after :func:`check_not_inputs`; the paths
+    written, in order, once each."""
+    unique = list(dict.fromkeys(p for p, _ in files))
+    check_not_inputs(unique, inputs, force)
+    for target, data in files:
+        _write_atomic(target, data)
+    return unique
 
 
 def lod_path(path: str | os.PathLike, name: str) -> Path:
@@ -169,13 +303,17 @@ def lod_path(path: str | os.PathLike, name: str) -> Path:
     return path.with_name(f"{path.stem}_{name}{path.suffix}")
 
 
-def save_lods(levels: list[tuple[str, Mesh]], path: str | os.PathLike) -> dict[str, list[Path]]:
+def save_lods(levels: list[tuple[str, Mesh]], path: str | os.PathLike, *,
+              inputs: list | None = None, force: bool = False) -> dict[str, list[Path]]:
     """Write an LOD chain: ``levels`` are (name, mesh) pairs, the most detailed first.
 
     In a format of :data:`SCENE_FORMATS` it is one file, ``path``, with one named mesh
     (and node, all at the origin) per level, as engines import LOD groups; levels that
     share a texture share one material and image. In any other format each level is a
     file of its own at :func:`lod_path` and ``path`` itself is not written.
+
+    ``inputs`` and ``force`` are as in :func:`save_mesh`; nothing is written when a
+    level's file would land on an input.
 
     Returns
     -------
@@ -184,14 +322,25 @@ def save_lods(levels: list[tuple[str, Mesh]], path: str | os.PathLike) -> dict[s
     """
     path = check_output_path(path)
     if path.suffix.lower() not in SCENE_FORMATS:
-        return {name: save_mesh(mesh, lod_path(path, name)) for name, mesh in levels}
+        per_level = {name: _mesh_files(mesh, check_output_path(lod_path(path, name)))
+                     for name, mesh in levels}
+        _commit([f for files in per_level.values() for f in files], inputs, force)
+        return {name: list(dict.fromkeys(p for p, _ in files))
+                for name, files in per_level.items()}
     import trimesh
+
+    for name, mesh in levels:
+        if mesh.uv is not None:
+            check_uv(mesh.uv, f"{path} {name}")
+        _check_storable(mesh, path, f"{path} {name}")
 
     splits = [split_materials(mesh, source=f"{path} {name}") for name, mesh in levels]
     if any(split is not None for split in splits):
         scene, groups = _scene([(name, mesh, split) for (name, mesh), split
                                 in zip(levels, splits)], path.stem)
-        written = _write_export(scene, path, tree_postprocessor=_one_mesh_per_group(groups))
+        written = _commit(_export_files(scene, path,
+                                        tree_postprocessor=_one_mesh_per_group(groups)),
+                          inputs, force)
         return {name: written for name, _ in levels}
     scene, materials = trimesh.Scene(), {}
     for name, mesh in levels:
@@ -200,7 +349,7 @@ def save_lods(levels: list[tuple[str, Mesh]], path: str | os.PathLike) -> dict[s
         if mesh.uv is not None:
             materials.setdefault(key, tm.visual.material)
         scene.add_geometry(tm, geom_name=name, node_name=name)
-    written = _write_export(scene, path)
+    written = _commit(_export_files(scene, path), inputs, force)
     return {name: written for name, _ in levels}
 
 
@@ -239,10 +388,17 @@ def _attributes(tm, source: str, ext: str, scan: dict):
         image = _material_image(visual.material) if has_image_file else None
         if image is not None and uv is not None:
             texture = _image_array(image)
+        kept = " (UVs kept)" if uv is not None else ""
         if scan.get("texture_refs"):
             missing = ", ".join(scan["texture_refs"])
-            warn(f"{source}: texture image not found ({missing}); loading untextured"
-                 + (" (UVs kept)" if uv is not None else ""))
+            warn(f"{source}: texture image not found ({missing}); loading untextured{kept}")
+        if scan.get("texture_unreadable"):
+            warn(f"{source}: texture image unreadable ({', '.join(scan['texture_unreadable'])}); "
+                 f"loading untextured{kept}")
+        elif has_image_file and image is None and ext == ".obj":
+            reasons = ", ".join(f"{name} {_unreadable(where)}"
+                                for name, where in scan["texture_files"])
+            warn(f"{source}: texture image unreadable ({reasons}); loading untextured{kept}")
     elif isinstance(visual, ColorVisuals) and visual.kind == "vertex":
         colors = np.asarray(visual.vertex_colors, dtype=np.uint8)
     if "vertex_normals" in tm._cache.cache:  # present only when the file had normals
@@ -295,8 +451,7 @@ def _load_materials(dumped: list, keys: dict, source: str, ext: str, scan: dict,
 
     from bench.io.atlas import Part, pack_materials
 
-    if scan.get("polygons"):
-        warn(f"{source}: triangulated {scan['polygons']} faces with more than 3 corners")
+    _warn_faces(source, scan)
     dumped = [g for g in dumped if isinstance(g, trimesh.Trimesh)
               and g.metadata.get("name") in keys]
     order = list(dict.fromkeys(keys.values()))
@@ -314,19 +469,26 @@ def _load_materials(dumped: list, keys: dict, source: str, ext: str, scan: dict,
         if isinstance(visual, TextureVisuals) and visual.uv is not None \
                 and len(visual.uv) == len(geom.vertices):
             uv = np.asarray(visual.uv, dtype=np.float64)
+            _check_file_uv(uv, source, Path(source) if ext == ".obj" else None)
         image, texture_source, color = None, None, (255, 255, 255, 255)
         if key is not None:
             color = _material_color(material)
             if ext == ".obj":
-                texture_source, exists = textures.get(key, (None, False))
-                if texture_source is not None and not exists:
-                    warn(f"{source}: material '{key}': texture image not found "
-                         f"({texture_source}); using its colour")
+                texture_source, problem = textures.get(key, (None, None))
+                if texture_source is not None and problem is not None:
+                    what = "not found" if problem == "not found" else "unreadable"
+                    detail = texture_source if problem == "not found" else \
+                        f"{texture_source} {problem}"
+                    warn(f"{source}: material '{key}': texture image {what} "
+                         f"({detail}); using its colour")
                     texture_source = None
             else:
                 texture_source = source
             picture = _material_image(material) if texture_source is not None else None
             image = None if picture is None else _image_array(picture)
+            if picture is None and texture_source is not None and ext == ".obj":
+                warn(f"{source}: material '{key}': texture image unreadable "
+                     f"({_unreadable(Path(texture_source))}); using its colour")
         elif isinstance(visual, ColorVisuals) and visual.kind == "vertex":
             color = tuple(int(c) for c in np.asarray(visual.vertex_colors).mean(axis=0).round())
             recoloured += 1
@@ -383,9 +545,86 @@ def _material_image(material):
 
 
 def _image_array(image) -> np.ndarray:
+    """A PIL image as an 8-bit RGB or RGBA array. A 16-bit (or 32-bit integer) grey
+    image is scaled to 8 bits (65535 -> 255), where PIL's conversion would clip every
+    value above 255 to white."""
+    if image.mode.startswith("I"):  # I;16, I;16B, I;16L, I: grey, more than 8 bits
+        values = np.asarray(image).astype(np.float64)
+        top = 65535.0 if image.mode.startswith("I;16") or values.max(initial=0) <= 65535 \
+            else float(2**32 - 1)
+        grey = np.rint(np.clip(values, 0, top) * (255.0 / top)).astype(np.uint8)
+        return np.repeat(grey[..., None], 3, axis=-1)
     if image.mode not in ("RGB", "RGBA"):
         image = image.convert("RGBA" if "A" in image.mode else "RGB")
     return np.asarray(image, dtype=np.uint8).copy()
+
+
+def _unreadable(path: Path) -> str:
+    """Why an image file that exists gave no texture: what PIL says of it."""
+    from PIL import Image
+
+    if path.is_dir():
+        return "is a directory"
+    if path.stat().st_size == 0:
+        return "is empty"
+    try:
+        with Image.open(path) as image:
+            image.load()
+    except Exception as exc:  # noqa: BLE001 - PIL raises many kinds; one line for the user
+        return f"cannot be read as an image: {' '.join(str(exc).split()) or type(exc).__name__}"
+    return "could not be loaded"
+
+
+def _warn_faces(source: str, scan: dict) -> None:
+    """The loader's warnings about an OBJ's faces: polygons triangulated (the concave
+    ones by ear clipping), faces with fewer than 3 corners left out."""
+    if scan.get("polygons"):
+        concave = scan.get("concave", 0)
+        warn(f"{source}: triangulated {scan['polygons']} faces with more than 3 corners"
+             + (f" ({concave} concave, by ear clipping)" if concave else ""))
+    if scan.get("short"):
+        warn(f"{source}: ignored {scan['short']} faces with fewer than 3 corners (first on "
+             f"line {scan['first_short']})")
+
+
+def _check_file_uv(uv: np.ndarray, source: str, obj: Path | None) -> None:
+    """:func:`~bench.io.validate.check_uv` for a file's UVs; for an OBJ (``obj``) the
+    error names the first ``vt`` line at fault."""
+    try:
+        check_uv(uv, source)
+    except InputError:
+        if obj is None:
+            raise
+        for lineno, line in enumerate(io.BytesIO(obj.read_bytes()), 1):
+            if line[:3] not in (b"vt ", b"vt\t"):
+                continue
+            try:
+                values = [float(x) for x in line.split()[1:3]]
+            except ValueError:
+                continue
+            if not all(abs(x) <= UV_LIMIT for x in values):
+                raise InputError(f"{source}: line {lineno}: texture coordinate "
+                                 f"{' '.join(f'{x:g}' for x in values)} is not finite or "
+                                 f"beyond {UV_LIMIT:g} in magnitude; the file is corrupt") \
+                    from None
+        raise
+
+
+class _TextResolver:
+    """trimesh's file resolver for an OBJ read from text: a material file that is not
+    UTF-8 is handed over re-encoded from Latin-1 (trimesh decodes only UTF-8)."""
+
+    def __new__(cls, source: str):
+        from trimesh.resolvers import FilePathResolver
+
+        class Resolver(FilePathResolver):
+            def get(self, name: str):
+                data = super().get(name)
+                if isinstance(data, bytes) and name.lower().endswith(".mtl"):
+                    data = _decode(data)[0].encode("utf-8")
+                return data
+
+        return Resolver(source)
 
 
 def _texture_key(texture: np.ndarray | None):
@@ -396,10 +635,10 @@ def _texture_key(texture: np.ndarray | None):
     return texture.shape, hashlib.sha1(np.ascontiguousarray(texture).tobytes()).hexdigest()
 
 
-def _write_export(tm, path: Path, **options) -> list[Path]:
+def _export_files(tm, path: Path, **options) -> list[tuple[Path, bytes]]:
     """Export a trimesh mesh or scene in the format of ``path``'s extension (``options``
-    go to trimesh's exporter); the files written (a ``.gltf`` with its buffers renamed
-    after ``path``)."""
+    go to trimesh's exporter); the files to write, (path, content) (a ``.gltf`` with its
+    buffers renamed after ``path``)."""
     data = tm.export(file_type=path.suffix.lower()[1:], **options)
     if isinstance(data, dict):  # .gltf: the JSON plus its buffers, renamed after OUT
         gltf = data.pop("model.gltf")
@@ -407,9 +646,9 @@ def _write_export(tm, path: Path, **options) -> list[Path]:
         for name, blob in data.items():
             own = f"{path.stem}_{name}"
             gltf = gltf.replace(f'"{name}"'.encode(), f'"{own}"'.encode())
-            written.append(_write_atomic(path.parent / own, blob))
-        return [_write_atomic(path, gltf)] + written
-    return [_write_atomic(path, data if isinstance(data, bytes) else data.encode())]
+            written.append((path.parent / own, blob))
+        return [(path, gltf)] + written
+    return [(path, data if isinstance(data, bytes) else data.encode())]
 
 
 def _to_trimesh(mesh: Mesh, material_name: str, material=None):
@@ -432,7 +671,7 @@ def _to_trimesh(mesh: Mesh, material_name: str, material=None):
     return tm
 
 
-def _save_obj_materials(mesh: Mesh, split: list, path: Path) -> list[Path]:
+def _obj_material_files(mesh: Mesh, split: list, path: Path) -> list[tuple[Path, bytes]]:
     """A multi-material mesh as an OBJ with one ``usemtl`` group per material, each with
     its own texture again (``<stem>_<material>.png``) and its UVs in that texture's
     space; positions are written once per welded vertex, exactly (17 digits)."""
@@ -467,10 +706,9 @@ def _save_obj_materials(mesh: Mesh, split: list, path: Path) -> list[Path]:
             images[image_name] = buffer.getvalue()
             mtl.append(f"map_Kd {image_name}")
         mtl.append("")
-    written = [_write_atomic(path, ("\n".join(lines) + "\n").encode()),
-               _write_atomic(path.parent / f"{stem}.mtl", "\n".join(mtl).encode())]
-    written += [_write_atomic(path.parent / fname, data) for fname, data in images.items()]
-    return written
+    return [(path, ("\n".join(lines) + "\n").encode()),
+            (path.parent / f"{stem}.mtl", "\n".join(mtl).encode())] + \
+        [(path.parent / fname, data) for fname, data in images.items()]
 
 
 def _obj_names(names: list[str]) -> list[str]:
@@ -556,75 +794,247 @@ def _write_atomic(path: Path, data: bytes) -> Path:
     return path
 
 
+def _decode(data: bytes) -> tuple[str, str]:
+    """A text file's content and encoding: UTF-8 (ASCII included), else Latin-1, which
+    every byte sequence is (exporters on Windows write it)."""
+    try:
+        return data.decode("utf-8"), "utf-8"
+    except UnicodeDecodeError:
+        return data.decode("latin-1"), "latin-1"
+
+
+_INDEX_KINDS = ("face index", "texture coordinate index", "normal index")
+_INDEX_UNITS = ("vertices", "texture coordinates", "normals")
+
+
 def _scan_obj(path: Path) -> dict:
-    """Index ranges, polygon count and texture references of an OBJ, without parsing
-    it fully (trimesh does that). Raises InputError on out-of-range indices."""
+    """Index ranges, face sizes, encoding and texture references of an OBJ, without
+    parsing it fully (trimesh does that). Raises InputError on an index out of range
+    (of a vertex, texture coordinate or normal) and on an unreadable index.
+
+    Faces with more than 3 corners are checked for convexity; the concave ones are
+    ear-clipped here (``text``, the file as trimesh is to read it), since trimesh cuts
+    every polygon into a fan, which covers the wrong area when the polygon is concave.
+    """
     data = path.read_bytes()
-    n_v = polygons = 0
-    max_index = 0
-    worst = None
+    _, encoding = _decode(data)
+    counts = [0, 0, 0]  # v, vt, vn lines so far
+    polygons = short = 0
+    first_short = None
+    big: list[tuple[int, list[bytes], int]] = []  # (line, corner tokens, v lines before)
+    maxima = [(0, 0), (0, 0), (0, 0)]  # per kind: (largest index, its line)
+    worst = [None, None, None]  # per kind: first index <= 0 out of range
     mtllibs = []
     usemtl: dict[str, None] = {}  # material names in order of first use
+    heads = {b"v ": 0, b"v\t": 0, b"vt": 1, b"vn": 2}
     for lineno, line in enumerate(io.BytesIO(data), 1):
         head = line[:2]
-        if head == b"v " or head == b"v\t":
-            n_v += 1
+        if head in heads:
+            kind = heads[head]
+            if kind == 0 or line[2:3] in (b" ", b"\t"):
+                counts[kind] += 1
         elif head == b"f " or head == b"f\t":
             tokens = line.split()[1:]
-            if len(tokens) > 3:
+            if len(tokens) < 3:
+                short += 1
+                first_short = first_short or lineno
+            elif len(tokens) > 3:
                 polygons += 1
+                big.append((lineno, tokens, counts[0]))
             for tok in tokens:
-                try:
-                    idx = int(tok.split(b"/", 1)[0])
-                except ValueError:
-                    raise InputError(f"{path}: line {lineno}: bad face index "
-                                     f"'{tok.decode(errors='replace')}'") from None
-                if idx < 0:
-                    resolved = n_v + idx + 1
-                    if resolved < 1 and worst is None:
-                        worst = (lineno, idx, n_v)
-                elif idx == 0 and worst is None:
-                    worst = (lineno, idx, n_v)
-                elif idx > max_index:
-                    max_index, max_line = idx, lineno
+                for kind, part in enumerate(tok.split(b"/")[:3]):
+                    if kind and not part:  # v//vn, or v/ : no such index
+                        continue
+                    try:
+                        idx = int(part)
+                    except ValueError:
+                        raise InputError(f"{path}: line {lineno}: bad {_INDEX_KINDS[kind]} "
+                                         f"'{tok.decode(errors='replace')}'") from None
+                    if idx < 0:
+                        if counts[kind] + idx + 1 < 1 and worst[kind] is None:
+                            worst[kind] = (lineno, idx, counts[kind])
+                    elif idx == 0:
+                        if worst[kind] is None:
+                            worst[kind] = (lineno, idx, counts[kind])
+                    elif idx > maxima[kind][0]:
+                        maxima[kind] = (idx, lineno)
         elif line.startswith(b"mtllib"):
             mtllibs.extend(line.split()[1:])
         elif line.startswith(b"usemtl"):
             words = line.split()
             if len(words) > 1:
-                usemtl.setdefault(words[1].decode(errors="replace"), None)
-    if worst is not None:
-        lineno, idx, n = worst
-        raise InputError(f"{path}: line {lineno}: face index {idx} is out of range "
-                         f"({n} vertices defined before it); the file is corrupt or truncated")
-    if max_index > n_v:
-        raise InputError(f"{path}: line {max_line}: face index {max_index} is out of range "
-                         f"(the file has {n_v} vertices); the file is corrupt or truncated")
-    refs, found, textures = [], [], {}
+                usemtl.setdefault(words[1].decode(encoding), None)
+    for kind in range(3):
+        if worst[kind] is not None:
+            lineno, idx, n = worst[kind]
+            raise InputError(f"{path}: line {lineno}: {_INDEX_KINDS[kind]} {idx} is out of "
+                             f"range ({n} {_INDEX_UNITS[kind]} defined before it); the file "
+                             "is corrupt or truncated")
+        top, lineno = maxima[kind]
+        if top > counts[kind]:
+            raise InputError(f"{path}: line {lineno}: {_INDEX_KINDS[kind]} {top} is out of "
+                             f"range (the file has {counts[kind]} {_INDEX_UNITS[kind]}); the "
+                             "file is corrupt or truncated")
+    refs, found, unreadable, textures, files = [], [], [], {}, [(path, "mesh")]
+    mtl_encodings = []
     for lib in mtllibs:
-        mtl = path.parent / lib.decode(errors="replace")
-        if not mtl.exists():
+        mtl = path.parent / lib.decode(encoding)
+        if not mtl.is_file():
             refs.append(f"{mtl.name} (material file)")
             continue
+        files.append((mtl, "material"))
+        mtl_text, mtl_encoding = _decode(mtl.read_bytes())
+        mtl_encodings.append(mtl_encoding)
         current = None
-        for line in mtl.read_bytes().splitlines():
+        for line in mtl_text.splitlines():
             parts = line.strip().split()
-            if parts and parts[0].lower() == b"newmtl" and len(parts) > 1:
-                current = parts[1].decode(errors="replace")
-            elif parts and parts[0].lower() in (b"map_kd", b"map_ka") and len(parts) > 1:
-                tex = parts[-1].decode(errors="replace")
-                exists = (mtl.parent / tex).exists()
-                (found if exists else refs).append(tex)
-                if parts[0].lower() == b"map_kd" and current is not None:
-                    textures[current] = (str(mtl.parent / tex), exists)
-    return {"polygons": polygons, "texture_refs": refs, "texture_files": found,
-            "usemtl": list(usemtl), "material_textures": textures}
+            key = parts[0].lower() if parts else ""
+            if key == "newmtl" and len(parts) > 1:
+                current = parts[1]
+            elif (key.startswith("map_") or key in ("bump", "disp", "decal", "norm")) \
+                    and len(parts) > 1:
+                files.append((mtl.parent / parts[-1], "texture"))
+                if key not in ("map_kd", "map_ka"):
+                    continue
+                tex = parts[-1]
+                where = mtl.parent / tex
+                problem = None if where.is_file() else \
+                    "is a directory" if where.is_dir() else "not found"
+                if problem is None:
+                    found.append((tex, where))
+                elif problem == "not found":
+                    refs.append(tex)
+                else:
+                    unreadable.append(f"{tex} {problem}")
+                if key == "map_kd" and current is not None:
+                    textures[current] = (str(where), problem)
+    text, concave = _ear_clip(data.decode(encoding), big) if big else (None, 0)
+    if concave == 0 and encoding == "utf-8" and "latin-1" not in mtl_encodings:
+        text = None  # trimesh reads the file itself, as it always has
+    elif text is None:
+        text = data.decode(encoding)
+    return {"polygons": polygons, "concave": concave, "short": short,
+            "first_short": first_short, "texture_refs": refs, "texture_files": found,
+            "texture_unreadable": unreadable, "usemtl": list(usemtl),
+            "material_textures": textures, "files": files, "encoding": encoding,
+            "text": text}
+
+
+def _ear_clip(text: str, big: list) -> tuple[str | None, int]:
+    """``text`` with each concave polygon of ``big`` (line, corner tokens, vertex lines
+    before it) replaced by the triangles of ear clipping, and how many there were.
+    Convex polygons are left to trimesh's fan, which is right for them."""
+    positions = []
+    for line in text.split("\n"):
+        if line[:2] in ("v ", "v\t"):
+            values = line.split()[1:4]
+            try:
+                positions.append([float(x) for x in values] + [0.0] * (3 - len(values)))
+            except ValueError:
+                positions.append([np.nan] * 3)
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    lines = text.split("\n")
+    concave = 0
+    for lineno, tokens, before in big:
+        corners = []
+        for tok in tokens:
+            idx = int(tok.split(b"/", 1)[0])
+            corners.append(before + idx if idx < 0 else idx - 1)
+        triangles = _triangulate_polygon(positions[corners])
+        if triangles is None:
+            continue
+        concave += 1
+        names = [tok.decode("latin-1") for tok in tokens]
+        lines[lineno - 1] = "\n".join("f " + " ".join(names[i] for i in tri)
+                                        for tri in triangles)
+    return "\n".join(lines), concave
+
+
+def _triangulate_polygon(points: np.ndarray) -> list[tuple[int, int, int]] | None:
+    """Ear clipping of one polygon (its corners in order, shape (k, 3)) in the plane of
+    its Newell normal: triangles as corner numbers in the polygon's winding, or None
+    when the polygon is convex (or degenerate, or not finite), where a fan is right."""
+    if not np.isfinite(points).all():
+        return None
+    q = points - points.mean(axis=0)
+    scale = np.abs(q).max()
+    if scale == 0:
+        return None
+    q = np.ldexp(q, -np.frexp(scale)[1])  # into [-1, 1] by a power of two: no overflow
+    normal = np.cross(q, np.roll(q, -1, axis=0)).sum(axis=0)
+    if not normal.any():
+        return None
+    axis = int(np.argmax(np.abs(normal)))
+    u, v = [(1, 2), (2, 0), (0, 1)][axis]
+    flat = q[:, [u, v]].copy()
+    if normal[axis] < 0:  # counter-clockwise seen from the normal's side
+        flat[:, 1] *= -1
+    prev, nxt = np.roll(flat, 1, axis=0), np.roll(flat, -1, axis=0)
+    turns = _cross2(flat - prev, nxt - flat)
+    if (turns >= 0).all():
+        return None
+
+    remaining = list(range(len(flat)))
+    triangles = []
+    while len(remaining) > 3:
+        n = len(remaining)
+        for j in range(n):
+            a, b, c = remaining[j - 1], remaining[j], remaining[(j + 1) % n]
+            if _cross2(flat[b] - flat[a], flat[c] - flat[b]) <= 0:
+                continue  # reflex or flat corner: not an ear
+            others = [k for k in remaining if k not in (a, b, c)]
+            if others and _inside(flat[others], flat[a], flat[b], flat[c]).any():
+                continue
+            triangles.append((a, b, c))
+            del remaining[j]
+            break
+        else:  # no ear (a self-intersecting polygon): a fan over what is left
+            triangles += [(remaining[0], remaining[i], remaining[i + 1])
+                          for i in range(1, len(remaining) - 1)]
+            return triangles
+    triangles.append(tuple(remaining))
+    return triangles
+
+
+def _cross2(a: np.ndarray, b: np.ndarray):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _inside(p: np.ndarray, a, b, c) -> np.ndarray:
+    """Which points ``p`` lie in the counter-clockwise triangle abc or on its edges."""
+    return ((_cross2(b - a, p - a) >= 0) & (_cross2(c - b, p - b) >= 0)
+            & (_cross2(a - c, p - c) >= 0))
 
 
 def _scan_ply(path: Path) -> dict:
-    """Face count from the PLY header (ASCII even in binary files), to count the faces
-    trimesh triangulated."""
+    """Vertex and face counts from the PLY header (ASCII even in binary files), to count
+    the faces trimesh triangulated and to tell a truncated file. An ASCII file must have
+    a line per element its header declares, the last one complete."""
     with open(path, "rb") as f:
-        header = f.read(4096).split(b"end_header", 1)[0]
-    match = re.search(rb"element\s+face\s+(\d+)", header)
-    return {"ply_faces": int(match.group(1))} if match else {}
+        head = f.read(4096)
+    header = head.split(b"end_header", 1)[0]
+    scan = {}
+    for key, name in (("ply_vertices", b"vertex"), ("ply_faces", b"face")):
+        match = re.search(rb"element\s+" + name + rb"\s+(\d+)", header)
+        if match:
+            scan[key] = int(match.group(1))
+    if re.search(rb"format\s+ascii", header) and b"end_header" in head:
+        body = path.read_bytes().split(b"end_header", 1)[1].split(b"\n", 1)[-1]
+        rows = [row for row in body.splitlines() if row.strip()]
+        elements = re.findall(rb"element\s+(\S+)\s+(\d+)", header)
+        declared = sum(int(n) for _, n in elements)
+        if len(rows) < declared:
+            raise InputError(f"{path}: {len(rows)} data lines where its header declares "
+                             f"{declared} elements; the file is truncated")
+        last = header.rsplit(b"element", 1)[-1]
+        if rows and re.search(rb"property\s+list\s+\S+\s+\S+\s+\S+", last) \
+                and last.count(b"property") == 1:
+            tokens = rows[declared - 1].split()
+            try:
+                complete = len(tokens) >= 1 + int(float(tokens[0]))
+            except (ValueError, IndexError):
+                complete = False
+            if not complete:
+                raise InputError(f"{path}: its last element (line {declared} of the data) "
+                                 "is incomplete; the file is truncated")
+    return scan

@@ -9,10 +9,14 @@ problem                    outcome
 =========================  ===============================================
 no faces                   error (a point cloud cannot be simplified)
 NaN / inf positions        error
-face index out of range    error
-non-triangle faces         triangulated by the loader, warning with count
-degenerate faces           dropped, warning with count
+NaN / inf / huge UVs       error (in a file; NaN UVs given as arrays: dropped, warning)
+face index out of range    error (also a vt or vn index, with the OBJ line)
+truncated PLY              error
+non-triangle faces         triangulated by the loader (concave: ear clipping), warning
+faces of 1 or 2 corners    left out by the loader, warning with count
+degenerate faces           dropped, warning with count (judged scale-free)
 missing texture image      warning, mesh loaded untextured (UVs kept)
+unreadable texture image   the same (empty, corrupt, a directory), with the reason
 non-manifold edges         allowed, warning with count
 several materials          one texture atlas (:mod:`bench.io.atlas`)
 a material's texture gone  warning, that material uses its colour
@@ -29,12 +33,32 @@ import numpy as np
 from bench.errors import InputError, MeshWarning
 from bench.mesh import Mesh
 
-__all__ = ["build_mesh", "warn"]
+__all__ = ["UV_LIMIT", "build_mesh", "check_uv", "warn"]
+
+#: The largest texture coordinate accepted (in texture periods): beyond, a UV is taken
+#: for corrupt data; no texture repeats that often, and a 32-bit float (as GPUs and
+#: glTF store UVs) has no fraction left there.
+UV_LIMIT = 1e6
 
 
 def warn(message: str) -> None:
     """Issue a :class:`MeshWarning` (shown by the CLI as one ``bench: warning:`` line)."""
     warnings.warn(message, MeshWarning, stacklevel=3)
+
+
+def check_uv(uv: np.ndarray, source: str, *, finite_checked: bool = False) -> None:
+    """InputError for texture coordinates that are not finite or beyond
+    :data:`UV_LIMIT`; with ``finite_checked``, only the second."""
+    uv = np.asarray(uv, dtype=np.float64)
+    bad = ~(np.abs(uv) <= UV_LIMIT).all(axis=1)
+    if finite_checked:
+        bad &= np.isfinite(uv).all(axis=1)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        u, v = uv[first]
+        raise InputError(f"{source}: {int(bad.sum())} texture coordinates are not finite or "
+                         f"beyond {UV_LIMIT:g} in magnitude (first: ({u:g}, {v:g}) at vertex "
+                         f"{first}); the data is corrupt")
 
 
 def build_mesh(positions, faces, *, source: str, uv=None, normals=None, colors=None,
@@ -100,6 +124,8 @@ def build_mesh(positions, faces, *, source: str, uv=None, normals=None, colors=N
         if not np.isfinite(value.astype(np.float64)).all():
             warn(f"{source}: ignoring {attr}: they contain NaN or infinite values")
             continue
+        if attr == "uv":
+            check_uv(value, source, finite_checked=True)
         attrs[attr] = value
 
     mesh = Mesh(positions, faces, texture=texture, name=name or source,
