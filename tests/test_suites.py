@@ -153,7 +153,7 @@ def test_bench_run_plans_a_suite_under_each_protocol(monkeypatch, tmp_path):
         protocols=(("flat", False), ("gouraud", True))))
     planned = []
     monkeypatch.setattr(run_command, "execute", lambda jobs, *a, **k: planned.append(jobs))
-    monkeypatch.setattr(run_command, "finish", lambda out, build_report=True: 0)
+    monkeypatch.setattr(run_command, "finish", lambda out, **options: 0)
 
     def bench_run(*extra):
         planned.clear()
