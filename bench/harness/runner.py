@@ -37,7 +37,7 @@ from bench.harness.jobs import (
 )
 
 __all__ = ["EXECUTORS", "SHEET_VIEWS", "Job", "JobResult", "LocalPool", "environment",
-           "execute", "method_label", "plan", "remaining", "run_job"]
+           "execute", "method_label", "next_job", "plan", "remaining", "run_job"]
 
 #: The executors ``bench run --executor`` offers.
 EXECUTORS = ("local", "dask")
@@ -93,8 +93,27 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
     return records
 
 
+def _group(job: Job) -> tuple[str, str]:
+    """Jobs of one method on one model may share work through the run's cache (e.g.
+    perceptual-mt's Multi-Triangulation and its bounds, built once per model)."""
+    return job.model, job.method
+
+
+def next_job(pending: deque, running: set, last: tuple[str, str] | None) -> Job:
+    """Take from ``pending`` the job a free process should run next: one of the group
+    (:func:`_group`) this process ran last, so what it cached in memory is reused; else
+    the first whose group no other process is running, so two processes do not build
+    the same shared work side by side; else the first (never idle while jobs wait)."""
+    free = [job for job in pending if _group(job) not in running]
+    job = next((j for j in free if _group(j) == last), free[0] if free else pending[0])
+    pending.remove(job)
+    return job
+
+
 class LocalPool:
-    """``workers`` job processes on this machine, each given the next job when free.
+    """``workers`` job processes on this machine, each given a job when free
+    (:func:`next_job`: the plan's order, except that a process keeps to its last
+    model and method where it can and two processes avoid running the same pair).
 
     A process that dies or runs past the timeout is killed and replaced (lazily, when
     there is a job for it); its job gets a failed record. ``cache_dir`` is the run
@@ -122,12 +141,17 @@ class LocalPool:
     def run(self, jobs: list[Job], timeout: float, done: Callable[[JobResult], None]) -> None:
         pending = deque(jobs)
         self.slots = [None] * min(self.workers, len(jobs))
+        last: list[tuple[str, str] | None] = [None] * len(self.slots)
         while pending or any(p is not None and p.job is not None for p in self.slots):
             for i, proc in enumerate(self.slots):
                 if pending and (proc is None or proc.job is None):
                     if proc is None or not proc.usable:  # first job, or replaced
                         self.slots[i] = proc = JobProcess()
-                    proc.submit(pending.popleft(), self.cache_dir, self._worker(i))
+                    running = {_group(p.job) for p in self.slots
+                               if p is not None and p.job is not None}
+                    job = next_job(pending, running, last[i])
+                    last[i] = _group(job)
+                    proc.submit(job, self.cache_dir, self._worker(i))
             busy = [p for p in self.slots if p is not None and p.job is not None]
             ready = wait([p.conn for p in busy], timeout=0.5)
             for proc in busy:
