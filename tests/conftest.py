@@ -73,3 +73,22 @@ def small_torus():
     from bench.models.torus import make_torus
 
     return make_torus(64, 32)
+
+
+def made_up_record(label: str = "q", status: str = "ok", model: str = "m", **changes) -> dict:
+    """A record as the runner writes it, numbers made up (an ok one without images; any
+    other status with the error "it broke"); ``changes`` replace top-level fields."""
+    from metrics.protocol import Protocol
+
+    r = {"schema": 1, "status": status, "error": None if status == "ok" else "it broke",
+         "job": {"model": model, "method": label.split("[")[0], "params": {}, "label": label,
+                 "target_faces": 100, "protocol": Protocol().as_dict()},
+         "model": {"name": model, "hash": "0" * 40, "faces": 1000},
+         "method": {"name": label, "version": "1", "view_dependent": False},
+         "metrics": {"faces": 100, "d_rms": 5.0, "ssim": 0.9, "hausdorff_mean": 0.01,
+                     "silhouette_mean": 2.0, "boundary_edges": 0, "seam_cracks": 0},
+         "per_view": {"d_rms": [5.0] * 24}, "silhouette_histogram": [1.0] + [0.0] * 20,
+         "stats": {"wall_seconds": 1.0, "tri_per_s": 900.0, "peak_mb": 10.0},
+         "artifacts": [], "environment": {}}
+    r.update(changes)
+    return r

@@ -34,6 +34,7 @@ from bench.harness.report import SCRIPT as PAGE_SCRIPT
 from bench.io.meshio import save_mesh
 from bench.mesh import Mesh
 from conftest import TET_FACES, TET_POSITIONS, icosphere
+from conftest import made_up_record as record
 
 PLUGINS = Path(__file__).parent / "plugins"
 
@@ -80,24 +81,6 @@ def a_file(name: str, text: str = "not a folder\n") -> Callable[[Path], None]:
         tet(folder)
         (folder / name).write_text(text)
     return make
-
-
-def record(label: str = "q", status: str = "ok", model: str = "m", **changes) -> dict:
-    """A record as the runner writes it (numbers made up; an ok one without images)."""
-    from metrics.protocol import Protocol
-
-    r = {"schema": 1, "status": status, "error": None if status == "ok" else "it broke",
-         "job": {"model": model, "method": label.split("[")[0], "params": {}, "label": label,
-                 "target_faces": 100, "protocol": Protocol().as_dict()},
-         "model": {"name": model, "hash": "0" * 40, "faces": 1000},
-         "method": {"name": label, "version": "1", "view_dependent": False},
-         "metrics": {"faces": 100, "d_rms": 5.0, "ssim": 0.9, "hausdorff_mean": 0.01,
-                     "silhouette_mean": 2.0, "boundary_edges": 0, "seam_cracks": 0},
-         "per_view": {"d_rms": [5.0] * 24}, "silhouette_histogram": [1.0] + [0.0] * 20,
-         "stats": {"wall_seconds": 1.0, "tri_per_s": 900.0, "peak_mb": 10.0},
-         "artifacts": [], "environment": {}}
-    r.update(changes)
-    return r
 
 
 FAILED = record("f", status="failed")  # a good record that draws nothing (fast reports)

@@ -21,27 +21,12 @@ from bench.errors import InputError
 from bench.harness.report import SCRIPT as PAGE_SCRIPT
 from bench.harness.report import write_report
 from bench.harness.results import load_records, write_record, write_table
+from conftest import made_up_record as record
 from metrics.protocol import Protocol
 
 SCRIPT = "<script>alert(1)</script>"
 SECRET = "TOPSECRET-7f3a1c"
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
-
-
-def record(label="q", model="m", status="ok", **changes) -> dict:
-    """An ok record as the runner writes it (numbers made up)."""
-    r = {"schema": 1, "status": status, "error": None,
-         "job": {"model": model, "method": label.split("[")[0], "params": {}, "label": label,
-                 "target_faces": 100, "protocol": Protocol().as_dict()},
-         "model": {"name": model, "hash": "0" * 40, "faces": 1000},
-         "method": {"name": label, "version": "1", "view_dependent": False},
-         "metrics": {"faces": 100, "d_rms": 5.0, "ssim": 0.9, "hausdorff_mean": 0.01,
-                     "silhouette_mean": 2.0, "boundary_edges": 0, "seam_cracks": 0},
-         "per_view": {"d_rms": [5.0] * 24}, "silhouette_histogram": [1.0] + [0.0] * 20,
-         "stats": {"wall_seconds": 1.0, "tri_per_s": 900.0, "peak_mb": 10.0},
-         "artifacts": [], "environment": {}}
-    r.update(changes)
-    return r
 
 
 def run_folder(root: Path, records: dict) -> Path:
