@@ -50,6 +50,7 @@ from bench.errors import ParamError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
 from methods.engine.policy import Policy
+from methods.engine.scale import scaled, workable_exponent
 from methods.engine.simplify import simplify_mesh
 from methods.imaging.views import interior_mask, view_directions
 
@@ -99,6 +100,11 @@ class ImageDriven(Method):
                              "the target)")
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
+        exponent = workable_exponent(mesh.positions)
+        if exponent:  # cameras and images at unit scale; the result scaled back exactly
+            result = self.simplify(scaled(mesh, -exponent), target_faces, ctx)
+            result.mesh = scaled(result.mesh, exponent)
+            return result
         from methods.imaging.raster import rasterize_luminance
         from methods.imaging.state import ImageTerm
         from metrics.views import cameras_for

@@ -13,6 +13,7 @@ from bench.mesh import Mesh
 from methods.engine.loop import _run
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
 from methods.engine.quadrics import _boundary_corners, initial_quadrics, wedge_quadrics
+from methods.engine.scale import scaled, workable_exponent
 from methods.engine.state import (
     KIND_STRANDED,
     KIND_STRANDED_WEDGES,
@@ -66,12 +67,24 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     Notes
     -----
     Costs and quadrics are computed on positions normalised to a unit bounding-box
-    diagonal; ``quadrics`` in the result are in those units.
+    diagonal; ``quadrics`` in the result are in those units. A mesh with coordinates
+    beyond 2^±60 is simplified as a copy scaled by a power of two
+    (:mod:`methods.engine.scale`) and its result scaled back.
     """
     import time
 
     if target_faces < 1:
         raise ValueError(f"target_faces must be at least 1, got {target_faces}")
+    exponent = workable_exponent(mesh.positions)
+    if exponent:  # coordinates near 1e300 or 1e-150: simplify at unit scale (exactly)
+        if image is not None:
+            raise ValueError("the image term was made for a mesh outside the workable "
+                             "scale; scale the mesh first (methods.engine.scale)")
+        result = simplify_mesh(scaled(mesh, -exponent), target_faces, policy, verify,
+                               borders, image, max_collapses)
+        result.mesh = scaled(result.mesh, exponent)
+        result.log["position"] = np.ldexp(result.log["position"], exponent)
+        return result
     start = time.perf_counter()
     prep = _prepare(mesh, policy, image)
     if policy.canny_weight != 0.0 and (borders is None or mesh.uv is None):
