@@ -505,6 +505,20 @@ case("simplify concave polygon", *SIMPLIFY, "concave.obj", "out.obj", "--faces",
                                                  "f 1 2 3 4 5\n"),
      pattern=r"^bench: warning: concave\.obj: triangulated 1 faces with more than 3 corners "
      r"\(1 concave, by ear clipping\)$", after=loads_back("out.obj", area_is(10.0)))
+#: An L of area 3 whose fan from its first corner covers 4 (trimesh fans PLY and OFF).
+L_CORNERS = "2 0 0\n2 1 0\n1 1 0\n1 2 0\n0 2 0\n0 0 0\n"
+case("simplify concave OFF polygon", *SIMPLIFY, "concave.off", "out.obj", "--faces", "4",
+     expect="ok", files=text_file("concave.off", "OFF\n6 1 0\n" + L_CORNERS + "6 0 1 2 3 4 5\n"),
+     pattern=r"^bench: warning: concave\.off: triangulated 1 faces with more than 3 corners "
+     r"\(1 concave, by ear clipping\)$", after=loads_back("out.obj", area_is(3.0)))
+case("simplify concave ASCII PLY polygon", *SIMPLIFY, "concave.ply", "out.obj", "--faces", "4",
+     expect="ok", files=text_file("concave.ply", "ply\nformat ascii 1.0\nelement vertex 6\n"
+                                  "property float x\nproperty float y\nproperty float z\n"
+                                  "element face 1\nproperty list uchar int vertex_indices\n"
+                                  "end_header\n" + L_CORNERS + "6 0 1 2 3 4 5\n"),
+     pattern=r"^bench: warning: concave\.ply: triangulated polygon faces \(1 faces in the file "
+     r"became 4 triangles; 1 concave, by ear clipping\)$",
+     after=loads_back("out.obj", area_is(3.0)))
 case("simplify faces with 1 and 2 corners", *SIMPLIFY, "short.obj", "out.obj", "--faces", "4",
      expect="ok", files=text_file("short.obj", TET_OBJ + "f 1 2\nf 3\n"),
      pattern=r"^bench: warning: short\.obj: ignored 2 faces with fewer than 3 corners \(first "

@@ -100,14 +100,15 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         raise InputError(f"{source}: unknown mesh format '{ext or '(none)'}'; "
                          f"supported: {', '.join(FORMATS)}")
 
-    scan = {".obj": _scan_obj, ".ply": _scan_ply}.get(ext, lambda p: {})(path)
+    scan = {".obj": _scan_obj, ".ply": _scan_ply, ".off": _scan_off}.get(ext, lambda p: {})(path)
 
     import trimesh
 
     try:
         if scan.get("text") is not None:  # re-encoded as UTF-8, or polygons ear-clipped
             scene = trimesh.load_scene(io.BytesIO(scan["text"].encode("utf-8")),
-                                       file_type="obj", resolver=_TextResolver(str(path)),
+                                       file_type=scan.get("file_type", "obj"),
+                                       resolver=_TextResolver(str(path)),
                                        process=False, skip_materials=False)
         else:
             scene = trimesh.load_scene(str(path), process=False, skip_materials=False)
@@ -133,8 +134,10 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         raise InputError(f"{source}: only {len(loaded.faces)} of the {scan['ply_faces']} faces "
                          "its header declares could be read; the file is corrupt or truncated")
     if scan.get("ply_faces") is not None and len(loaded.faces) > scan["ply_faces"]:
+        concave = scan.get("concave", 0)
         warn(f"{source}: triangulated polygon faces ({scan['ply_faces']} faces in the file "
-             f"became {len(loaded.faces)} triangles)")
+             f"became {len(loaded.faces)} triangles"
+             + (f"; {concave} concave, by ear clipping)" if concave else ")"))
 
     uv, texture, colors, normals = _attributes(loaded, source, ext, scan)
     if uv is not None:
@@ -1006,6 +1009,56 @@ def _inside(p: np.ndarray, a, b, c) -> np.ndarray:
             & (_cross2(a - c, p - c) >= 0))
 
 
+def _scan_off(path: Path) -> dict:
+    """An ASCII OFF's polygons, with the concave ones ear-clipped in ``text`` (trimesh
+    cuts every polygon into a fan, which covers the wrong area when it is concave).
+    Anything this does not parse (another header, a binary or malformed file) is left
+    to trimesh as it is."""
+    text, _ = _decode(path.read_bytes())
+    lines = text.split("\n")
+    entries = [(i, line.split("#", 1)[0].split()) for i, line in enumerate(lines)]
+    entries = [(i, tokens) for i, tokens in entries if tokens]
+    if not entries or entries[0][1][0] != "OFF":
+        return {}
+    try:
+        if len(entries[0][1]) > 1:  # the counts on the header's line
+            count_line, counts, first = entries[0][0], entries[0][1][1:], 1
+        else:
+            count_line, counts, first = entries[1][0], entries[1][1], 2
+        nv, nf = int(counts[0]), int(counts[1])
+        vertices = entries[first:first + nv]
+        faces = entries[first + nv:first + nv + nf]
+        positions = np.array([[float(x) for x in tokens[:3]] for _, tokens in vertices])
+        if len(vertices) != nv or len(faces) != nf:
+            return {}
+        polygons = concave = added = 0
+        for i, tokens in faces:
+            k = int(tokens[0])
+            if k <= 3:
+                continue
+            polygons += 1
+            corners = [int(t) for t in tokens[1:1 + k]]
+            if min(corners) < 0 or max(corners) >= nv:
+                return {}  # trimesh's error, or the index check, says what is wrong
+            triangles = _triangulate_polygon(positions[corners])
+            if triangles is None:
+                continue
+            concave += 1
+            added += len(triangles) - 1
+            extra = " ".join(tokens[1 + k:])  # a face colour, kept on every triangle
+            lines[i] = "\n".join(f"3 {' '.join(str(corners[j]) for j in tri)} {extra}".rstrip()
+                                 for tri in triangles)
+    except (ValueError, IndexError):
+        return {}
+    if concave:
+        header = lines[count_line].split("#", 1)[0].split()
+        numbers = header[1:] if header[0] == "OFF" else header
+        numbers[1] = str(nf + added)
+        lines[count_line] = " ".join((["OFF"] if header[0] == "OFF" else []) + numbers)
+    return {"text": "\n".join(lines) if concave else None, "file_type": "off",
+            "polygons": polygons, "concave": concave}
+
+
 def _scan_ply(path: Path) -> dict:
     """Vertex and face counts from the PLY header (ASCII even in binary files), to count
     the faces trimesh triangulated and to tell a truncated file. An ASCII file must have
@@ -1037,4 +1090,54 @@ def _scan_ply(path: Path) -> dict:
             if not complete:
                 raise InputError(f"{path}: its last element (line {declared} of the data) "
                                  "is incomplete; the file is truncated")
+        scan.update(_ply_ear_clip(head.split(b"end_header", 1)[0], path.read_bytes()))
     return scan
+
+
+def _ply_ear_clip(header: bytes, data: bytes) -> dict:
+    """An ASCII PLY of a vertex and a face element (x, y, z among the vertex's scalar
+    properties, one index list per face) with its concave polygons ear-clipped, as
+    ``text`` and ``concave``; {} for any other layout (left to trimesh's fan)."""
+    elements = re.findall(rb"element\s+(\S+)\s+(\d+)((?:\s*property[^\n]*)*)", header)
+    if [e[0] for e in elements] != [b"vertex", b"face"]:
+        return {}
+    vertex_props = [line.split() for line in elements[0][2].splitlines() if line.strip()]
+    if any(len(words) != 3 for words in vertex_props):  # a list property, or malformed
+        return {}
+    names = [words[2] for words in vertex_props]
+    face_props = re.findall(rb"property\s+list\s+\S+\s+\S+\s+\S+", elements[1][2])
+    if len(face_props) != 1 or elements[1][2].count(b"property") != 1 \
+            or not all(n in names for n in (b"x", b"y", b"z")):
+        return {}
+    text, _ = _decode(data)
+    head, body = text.split("end_header", 1)
+    first, rest = body.split("\n", 1) if "\n" in body else (body, "")
+    lines = rest.split("\n")
+    rows = [i for i, line in enumerate(lines) if line.strip()]
+    nv, nf = int(elements[0][1]), int(elements[1][1])
+    xyz = [names.index(n) for n in (b"x", b"y", b"z")]
+    try:
+        positions = np.array([[float(lines[i].split()[j]) for j in xyz] for i in rows[:nv]])
+        concave = added = 0
+        for i in rows[nv:nv + nf]:
+            tokens = lines[i].split()
+            k = int(tokens[0])
+            if k <= 3:
+                continue
+            corners = [int(t) for t in tokens[1:1 + k]]
+            if min(corners) < 0 or max(corners) >= nv:
+                return {}
+            triangles = _triangulate_polygon(positions[corners])
+            if triangles is None:
+                continue
+            concave += 1
+            added += len(triangles) - 1
+            lines[i] = "\n".join("3 " + " ".join(str(corners[j]) for j in tri)
+                                 for tri in triangles)
+    except (ValueError, IndexError):
+        return {}
+    if not concave:
+        return {}
+    head = re.sub(r"element\s+face\s+\d+", f"element face {nf + added}", head)
+    return {"text": head + "end_header" + first + "\n" + "\n".join(lines),
+            "file_type": "ply", "concave": concave}
