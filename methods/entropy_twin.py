@@ -86,7 +86,7 @@ from bench.errors import ParamError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
 from methods.engine.policy import Policy
-from methods.engine.scale import scaled, workable_exponent
+from methods.engine.scale import at_workable_scale
 from methods.engine.simplify import simplify_mesh
 
 __all__ = ["EntropyTwin", "viewpoint_entropy", "entropy_term", "rebuild_normals",
@@ -275,12 +275,8 @@ class EntropyTwin(Method):
                       boundary_rule=p.boundary_rule,
                       uv_correction=p.uv_correction)
 
+    @at_workable_scale  # cameras and images at unit scale; the result scaled back
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
-        exponent = workable_exponent(mesh.positions)
-        if exponent:  # cameras and images at unit scale; the result scaled back exactly
-            result = self.simplify(scaled(mesh, -exponent), target_faces, ctx)
-            result.mesh = scaled(result.mesh, exponent)
-            return result
         self._check()
         p = self.params
         start = time.perf_counter()

@@ -50,7 +50,7 @@ from bench.errors import ParamError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
 from methods.engine.policy import Policy
-from methods.engine.scale import scaled, workable_exponent
+from methods.engine.scale import at_workable_scale
 from methods.engine.simplify import simplify_mesh
 from methods.imaging.views import interior_mask, view_directions
 
@@ -99,12 +99,8 @@ class ImageDriven(Method):
             raise ParamError("image-driven: presimplify_faces must be >= 0 (0: ten times "
                              "the target)")
 
+    @at_workable_scale  # cameras and images at unit scale; the result scaled back
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
-        exponent = workable_exponent(mesh.positions)
-        if exponent:  # cameras and images at unit scale; the result scaled back exactly
-            result = self.simplify(scaled(mesh, -exponent), target_faces, ctx)
-            result.mesh = scaled(result.mesh, exponent)
-            return result
         from methods.imaging.raster import rasterize_luminance
         from methods.imaging.state import ImageTerm
         from metrics.views import cameras_for

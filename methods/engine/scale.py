@@ -10,6 +10,8 @@ point, and a mesh inside the range is left as it is, so its results do not chang
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from bench.mesh import Mesh
@@ -32,3 +34,19 @@ def scaled(mesh: Mesh, exponent: int) -> Mesh:
     if exponent == 0:
         return mesh
     return mesh.replace(positions=np.ldexp(mesh.positions, exponent))
+
+
+def at_workable_scale(simplify):
+    """Decorate a method's ``simplify(self, mesh, target_faces, ctx)`` so that it runs on
+    :func:`scaled` ``mesh`` when the mesh is outside the workable range, and its result's
+    mesh is scaled back (the view-based methods make their cameras from the mesh, so
+    they scale before :func:`methods.engine.simplify.simplify_mesh` would)."""
+    @functools.wraps(simplify)
+    def wrapper(self, mesh: Mesh, target_faces: int, ctx=None):
+        exponent = workable_exponent(mesh.positions)
+        if not exponent:
+            return simplify(self, mesh, target_faces, ctx)
+        result = simplify(self, scaled(mesh, -exponent), target_faces, ctx)
+        result.mesh = scaled(result.mesh, exponent)
+        return result
+    return wrapper
