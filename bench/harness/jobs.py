@@ -133,6 +133,19 @@ class JobResult:
         return self.record.get("status") == "failed"
 
 
+def _death(code: int | None) -> str:
+    """Why a job process ended without a result, from its exit code (negative: the
+    signal that killed it)."""
+    if code is not None and code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        hint = " (the out-of-memory killer sends it)" if -code == signal.SIGKILL else ""
+        return f"job process was killed by {name}{hint}"
+    return f"job process died (exit code {code})"
+
+
 def failed_result(job: Job, error: str, worker: dict | None = None) -> JobResult:
     """The record of a job that produced none itself (its process died, it ran out of
     time, its Dask workers were lost)."""
@@ -476,7 +489,7 @@ class JobProcess:
                 self.kill()
                 code = self.process.returncode
             self.conn.close()
-            return failed_result(job, f"job process died (exit code {code})", self.worker)
+            return failed_result(job, _death(code), self.worker)
         if result.failed:  # its result is in: nothing of the process is worth keeping
             self.kill()
         return result

@@ -77,3 +77,49 @@ class KillWorker(Method):
 
         os.kill(os.getppid(), signal.SIGKILL)
         time.sleep(3600)  # ended by the job process's watch on its parent
+
+
+class KillSelf(Method):
+    """SIGKILLs its own job process on the first attempt (noted in ``marker``), as the
+    kernel's out-of-memory killer would; later attempts return the input."""
+
+    name = "kill-self"
+    warms_up = False
+
+    @dataclass
+    class Params:
+        marker: str = ""
+
+    def simplify(self, mesh, target_faces, ctx=None):
+        import signal
+
+        from bench.method import SimplifyResult
+
+        if not os.path.exists(self.params.marker):
+            with open(self.params.marker, "w") as f:
+                f.write(f"{os.getpid()}\n")
+            os.kill(os.getpid(), signal.SIGKILL)
+        return SimplifyResult(mesh, stop_reason="kill-self returns its input")
+
+
+class OutOfMemory(Method):
+    """Runs out of memory: under a soft address-space limit 512 MiB above its size, asks
+    for 4 GiB (numpy raises MemoryError); the limit is restored after."""
+
+    name = "out-of-memory"
+    warms_up = False
+
+    def simplify(self, mesh, target_faces, ctx=None):
+        import resource
+
+        import numpy as np
+
+        soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+        with open("/proc/self/statm") as f:
+            size = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+        resource.setrlimit(resource.RLIMIT_AS, (size + (512 << 20), hard))
+        try:
+            np.ones(1 << 29)  # 4 GiB of float64
+        finally:
+            resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+        raise AssertionError("the allocation should have failed")
