@@ -20,7 +20,9 @@ fi
 PYTHON=${PYTHON:-$(command -v python3.11 || command -v python3)}
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
-.venv/bin/python -m pip install -q -e '.[test,dask]'
+# Exact versions (constraints.txt, from pip freeze): the same numbers from the same
+# command on any day; regenerate it with the baselines when upgrading on purpose.
+.venv/bin/python -m pip install -q -c constraints.txt -e '.[test,dask]'
 # Compile the numba kernels once (cached on disk), so no run or test pays for it.
 .venv/bin/bench warmup
 
