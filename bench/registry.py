@@ -41,6 +41,15 @@ def suggest(name: str, candidates) -> str:
     return "; did you mean " + " or ".join(f"'{c}'" for c in close) + "?"
 
 
+def _installed(module: str) -> bool:
+    """Whether ``module``'s top-level package can be found (an ImportError naming it is
+    then a broken import inside it, not a missing install)."""
+    try:
+        return importlib.util.find_spec(module.split(".", 1)[0]) is not None
+    except (ImportError, ValueError):
+        return False
+
+
 @dataclass
 class Entry:
     """One registered plug-in, not yet imported."""
@@ -62,7 +71,10 @@ class Entry:
             self._object = self.entry_point.load()
         except ImportError as exc:
             module = getattr(exc, "name", None) or str(exc)
-            self._problem = f"cannot import {module}; try: pip install {module}"
+            if _installed(module):  # it is there but fails inside: no pip command helps
+                self._problem = f"failed to load {self.target}: ImportError: {exc}"
+            else:
+                self._problem = f"cannot import {module}; try: pip install {module}"
             return
         except Exception as exc:  # a broken plug-in must not break `bench list`
             self._problem = f"failed to load {self.target}: {type(exc).__name__}: {exc}"

@@ -137,6 +137,20 @@ def test_missing_module_is_listed_but_unavailable():
     assert reg.load("alpha") is Alpha  # one broken plug-in does not break the others
 
 
+def test_a_broken_import_inside_an_installed_module_is_not_a_missing_install(tmp_path,
+                                                                          monkeypatch):
+    """A plug-in whose module is there but imports a name that is not (an old copy of a
+    module it needs, a typo) is unavailable with the ImportError, not with a pip command
+    for a package that is installed."""
+    (tmp_path / "half_edited_plugin.py").write_text("from bench.method import no_such_name\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    reg = Registry("method", eps=[ep("half", "half_edited_plugin:Thing")])
+    problem = reg.entry("half").problem
+    assert problem.startswith("failed to load half_edited_plugin:Thing: ImportError: cannot "
+                              "import name 'no_such_name' from 'bench.method'"), problem
+    assert "pip install" not in problem
+
+
 def test_missing_backend_is_unavailable_with_pip_command():
     reg = Registry("model", eps=[ep("needy", f"{PLUGINS}:NeedsMissing", "bench.models")])
     entry = reg.entry("needy")
