@@ -9,8 +9,8 @@ def _fixed_blas_kernel() -> None:
 
     OpenBLAS chooses its kernels by the CPU it finds, and its AVX-512 kernels round
     some products differently from its AVX2 ones; perceptual-mt's cut decisions turn
-    that last-bit difference into a different mesh (d_rms 19.6951 against 19.6896 on
-    the torus at 655 faces, the same code on two machines). Set before numpy loads
+    that last-bit difference into a different mesh (on the torus at 655 faces, d_rms
+    19.6951 with the AVX-512 kernels, 19.6896 with the AVX2 ones). Set before numpy loads
     OpenBLAS, and inherited by every job process, so the suite's numbers do not depend
     on which of these machines ran it. An explicit ``OPENBLAS_CORETYPE`` is kept.
     """
