@@ -1009,6 +1009,33 @@ def _inside(p: np.ndarray, a, b, c) -> np.ndarray:
             & (_cross2(a - c, p - c) >= 0))
 
 
+def _clip_face_lines(lines: list[str], rows, positions: np.ndarray) -> tuple[int, int, int]:
+    """Replace each concave polygon among the face lines ``lines[i]`` (``i`` in ``rows``,
+    each "k i1 ... ik [extra]" as OFF and ASCII PLY write them) by the triangles of ear
+    clipping, any extra values (a face colour) kept on each; returns (polygons, concave
+    ones, triangles added). Raises ValueError for an index out of range (the caller
+    leaves such a file to trimesh, whose error or the index check says what is wrong)."""
+    polygons = concave = added = 0
+    for i in rows:
+        tokens = lines[i].split()
+        k = int(tokens[0])
+        if k <= 3:
+            continue
+        polygons += 1
+        corners = [int(t) for t in tokens[1:1 + k]]
+        if min(corners) < 0 or max(corners) >= len(positions):
+            raise ValueError("face index out of range")
+        triangles = _triangulate_polygon(positions[corners])
+        if triangles is None:
+            continue
+        concave += 1
+        added += len(triangles) - 1
+        extra = " ".join(tokens[1 + k:])
+        lines[i] = "\n".join(f"3 {' '.join(str(corners[j]) for j in tri)} {extra}".rstrip()
+                             for tri in triangles)
+    return polygons, concave, added
+
+
 def _scan_off(path: Path) -> dict:
     """An ASCII OFF's polygons, with the concave ones ear-clipped in ``text`` (trimesh
     cuts every polygon into a fan, which covers the wrong area when it is concave).
@@ -1028,26 +1055,10 @@ def _scan_off(path: Path) -> dict:
         nv, nf = int(counts[0]), int(counts[1])
         vertices = entries[first:first + nv]
         faces = entries[first + nv:first + nv + nf]
-        positions = np.array([[float(x) for x in tokens[:3]] for _, tokens in vertices])
         if len(vertices) != nv or len(faces) != nf:
             return {}
-        polygons = concave = added = 0
-        for i, tokens in faces:
-            k = int(tokens[0])
-            if k <= 3:
-                continue
-            polygons += 1
-            corners = [int(t) for t in tokens[1:1 + k]]
-            if min(corners) < 0 or max(corners) >= nv:
-                return {}  # trimesh's error, or the index check, says what is wrong
-            triangles = _triangulate_polygon(positions[corners])
-            if triangles is None:
-                continue
-            concave += 1
-            added += len(triangles) - 1
-            extra = " ".join(tokens[1 + k:])  # a face colour, kept on every triangle
-            lines[i] = "\n".join(f"3 {' '.join(str(corners[j]) for j in tri)} {extra}".rstrip()
-                                 for tri in triangles)
+        positions = np.array([[float(x) for x in tokens[:3]] for _, tokens in vertices])
+        polygons, concave, added = _clip_face_lines(lines, [i for i, _ in faces], positions)
     except (ValueError, IndexError):
         return {}
     if concave:
@@ -1118,22 +1129,7 @@ def _ply_ear_clip(header: bytes, data: bytes) -> dict:
     xyz = [names.index(n) for n in (b"x", b"y", b"z")]
     try:
         positions = np.array([[float(lines[i].split()[j]) for j in xyz] for i in rows[:nv]])
-        concave = added = 0
-        for i in rows[nv:nv + nf]:
-            tokens = lines[i].split()
-            k = int(tokens[0])
-            if k <= 3:
-                continue
-            corners = [int(t) for t in tokens[1:1 + k]]
-            if min(corners) < 0 or max(corners) >= nv:
-                return {}
-            triangles = _triangulate_polygon(positions[corners])
-            if triangles is None:
-                continue
-            concave += 1
-            added += len(triangles) - 1
-            lines[i] = "\n".join("3 " + " ".join(str(corners[j]) for j in tri)
-                                 for tri in triangles)
+        _, concave, added = _clip_face_lines(lines, rows[nv:nv + nf], positions)
     except (ValueError, IndexError):
         return {}
     if not concave:
