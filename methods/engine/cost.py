@@ -46,7 +46,7 @@ from methods.imaging.region import image_cost
 from metrics.shading import BACKGROUND
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _evaluate(a, b, mesh, rules, terms, scratch, images):
     """Cost of collapsing edge (a, b) and where the kept vertex goes.
 
@@ -84,7 +84,7 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
                            terms, scratch, images)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _edge_quadric(a, b, mesh, scratch):
     """``scratch.qsum`` = the quadric of edge (a, b): the endpoints' vertex quadrics,
     plus with wedge quadrics (Garland-Heckbert 1998, over (x, y, z, u, v)) each merged
@@ -104,7 +104,7 @@ def _edge_quadric(a, b, mesh, scratch):
             _add_reduced(g, mesh.uv[targets[i]], qsum)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _forced_end(a, b, mesh, rules, scratch):
     """The vertex the rules keep at its own position (-1: none; -2: the collapse is
     forbidden), from the ends' vertex kinds and the rule tables of
@@ -135,7 +135,7 @@ def _forced_end(a, b, mesh, rules, scratch):
     return forced
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules, terms,
                     scratch, images):
     """The placement (into ``scratch.p``) and the cost there, for :func:`_evaluate`."""

@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit, types
 from numba.typed import Dict
 
+from methods.engine.borrow import borrowed
 from methods.engine.collapse import _collapse
 from methods.engine.cost import _evaluate
 from methods.engine.policy import _N_REJECTIONS, REJECT_SEAM_RULE, VALID
@@ -57,7 +58,7 @@ def _push(heap, cost, a, b, sa, sb, p, keep):
                           float(p[0]), float(p[1]), float(p[2]), np.int64(keep)))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cost(a, b, mesh, rules, terms, scratch, images, queue):
     """:func:`_evaluate` of edge (a, b), counted; the placement lands in ``scratch.p``."""
     cost, keep = _evaluate(a, b, mesh, rules, terms, scratch, images)
@@ -360,8 +361,12 @@ def _run(mesh, rules, terms, scratch, images, kinds):
     (counts by rejection code - 1), log (:data:`~methods.engine.state.Log`, trimmed
     by the caller to its ``count``))."""
     run_start = cycles()
+    # The hot path sees the state without reference counts (methods.engine.borrow):
+    # the arguments outlive the loop, and ``owned_queue`` is read after it.
+    mesh, terms, scratch, images, kinds = borrowed((mesh, terms, scratch, images, kinds))
     nv, F = mesh.P.shape[0], mesh.F
-    heap, queue = _new_queue(nv)
+    heap, owned_queue = _new_queue(nv)
+    queue = borrowed(owned_queue)
     rejects = np.zeros(_N_REJECTIONS, np.int64)
     log = _new_log(rules.max_collapses, F.shape[0])
     # Blocked edges: rejected candidates, re-queued once when either endpoint's stamp
@@ -413,4 +418,5 @@ def _run(mesh, rules, terms, scratch, images, kinds):
     if faces <= rules.target:
         stopped = 0
     images.img.stats[STAT_RUN_CYCLES] += cycles() - run_start
-    return (stopped, queue.tally[EVALUATIONS], queue.tally[MISMATCHES], rejects, log)
+    tally = owned_queue.tally
+    return (stopped, tally[EVALUATIONS], tally[MISMATCHES], rejects, log)
