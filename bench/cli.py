@@ -17,13 +17,15 @@ from bench.commands import check as check_cmd
 from bench.commands import list as list_cmd
 from bench.commands import one_line
 from bench.commands import report as report_cmd
+from bench.commands import reproduce as reproduce_cmd
 from bench.commands import run as run_cmd
 from bench.commands import simplify as simplify_cmd
 from bench.commands import warmup as warmup_cmd
 from bench.errors import BenchError
 
 COMMANDS = {"list": list_cmd, "simplify": simplify_cmd, "run": run_cmd, "report": report_cmd,
-            "baseline": baseline_cmd, "check": check_cmd, "warmup": warmup_cmd}
+            "baseline": baseline_cmd, "check": check_cmd, "reproduce": reproduce_cmd,
+            "warmup": warmup_cmd}
 
 
 def build_parser() -> argparse.ArgumentParser:

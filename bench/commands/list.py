@@ -1,5 +1,5 @@
-"""``bench list [methods|models|metrics|suites]``: what is registered, from where, and
-whether it can run here; the named experiment suites."""
+"""``bench list [methods|models|metrics|suites|claims]``: what is registered, from where,
+and whether it can run here; the named experiment suites and the papers' claims they test."""
 
 from __future__ import annotations
 
@@ -11,20 +11,22 @@ KINDS = {"methods": "method", "models": "model", "metrics": "metric"}
 
 
 def add_parser(sub, name: str) -> None:
-    p = sub.add_parser(name, help="list registered methods, models and metrics",
+    p = sub.add_parser(name, help="list registered methods, models and metrics, the suites and the claims",
                        description=__doc__)
-    p.add_argument("what", nargs="?", choices=list(KINDS) + ["suites"],
+    p.add_argument("what", nargs="?", choices=list(KINDS) + ["suites", "claims"],
                    help="only this kind (default: all)")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
-    kinds = [args.what] if args.what else list(KINDS) + ["suites"]
+    kinds = [args.what] if args.what else list(KINDS) + ["suites", "claims"]
     for i, plural in enumerate(kinds):
         if i:
             print()
         if plural == "suites":
             rows = _suite_rows()
+        elif plural == "claims":
+            rows = _claim_rows()
         else:
             rows = [_row(KINDS[plural], e) for e in registry(KINDS[plural])]
         print(f"{plural} ({len(rows)})")
@@ -35,8 +37,16 @@ def run(args) -> int:
 def _suite_rows() -> list[dict]:
     from bench.harness.suites import SUITES
 
-    return [{"name": s.name, "models": ",".join(s.models), "detail": s.description}
-            for s in SUITES.values()]
+    return [{"name": s.name, "models": ",".join(s.models), "claims": len(s.claims),
+             "detail": s.description} for s in SUITES.values()]
+
+
+def _claim_rows() -> list[dict]:
+    from bench.harness.suites import SUITES
+
+    return [{"name": c.name, "suite": c.suite, "source": c.source, "test": c.test,
+             "paper": c.paper or "qualitative", "detail": c.statement}
+            for s in SUITES.values() for c in s.claims]
 
 
 def _row(kind: str, entry) -> dict:

@@ -17,6 +17,12 @@ The protocol never records NaN (an undefined metric is left out of the record), 
 in a record or a baseline is damage or a plug-in's bug, and a baseline file is checked
 by shape (:func:`load_baseline`) before it gates anything.
 
+The papers' claims (:mod:`bench.harness.claims`) are gated too: a baseline keeps the
+verdict of every claim its run has records for, and a claim that held there (``holds``
+or ``holds, weaker``) and no longer holds is ``claim broken``, which fails the check;
+one that now holds and did not is ``claim holds``; another change of verdict is
+``changed``. A claim of the baseline the run cannot decide is ``missing``.
+
 A metric registered by a third-party package is checked like a built-in one, by its own
 ``higher_is_better``. A metric that raised in an ok job (its value missing, its error in
 the record's ``metric_errors``) is ``newly failing`` where the baseline has a value.
@@ -45,7 +51,7 @@ __all__ = ["BASELINE_SCHEMA", "FAILING_MARKS", "baseline_problem", "canonical_la
            "check_tolerance", "compare", "load_baseline", "make_baseline", "metric_directions"]
 
 BASELINE_SCHEMA = 1
-FAILING_MARKS = ("worse", "not finite", "newly failing", "missing")
+FAILING_MARKS = ("worse", "not finite", "newly failing", "missing", "claim broken")
 
 
 def metric_directions() -> dict[str, bool]:
@@ -128,7 +134,27 @@ def make_baseline(records: list[dict]) -> dict:
         errors = {k: v for k, v in (r.get("metric_errors") or {}).items() if k in directions}
         if errors:  # metrics that raised in an ok job (metrics.protocol.evaluate)
             entries[key]["metric_errors"] = errors
-    return {"schema": BASELINE_SCHEMA, "entries": dict(sorted(entries.items()))}
+    out = {"schema": BASELINE_SCHEMA, "entries": dict(sorted(entries.items()))}
+    claims = claim_verdicts(records)
+    if claims:
+        out["claims"] = claims
+    return out
+
+
+def claim_verdicts(records: list[dict]) -> dict[str, str]:
+    """Claim name -> verdict, for every claim of every suite that ``records`` have
+    evidence for (a claim is scoped to its suite's models and budgets, so a run decides
+    the claims of the suite it ran, and no others unless it ran their jobs too)."""
+    from bench.harness.claims import evaluate_claim
+    from bench.harness.suites import SUITES
+
+    out = {}
+    for suite in SUITES.values():
+        for claim in suite.claims:
+            result = evaluate_claim(claim, records)
+            if result.rows:
+                out[claim.name] = result.verdict
+    return dict(sorted(out.items()))
 
 
 def _number(value) -> bool:
@@ -202,6 +228,14 @@ def baseline_problem(data) -> str | None:
         errors = entry.get("metric_errors", {})
         if not isinstance(errors, dict) or not all(isinstance(v, str) for v in errors.values()):
             return f"{where}: 'metric_errors' is not an object of strings"
+    from bench.harness.claims import VERDICTS
+
+    claims = data.get("claims", {})
+    if not isinstance(claims, dict):
+        return "'claims' is not an object"
+    for name, verdict in claims.items():
+        if verdict not in VERDICTS:
+            return f"claim {_show(name)}: verdict {_show(verdict)} is not one of {VERDICTS}"
     return None
 
 
@@ -262,4 +296,27 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
             slack = tolerance * abs(before) + 1e-12
             mark = "worse" if delta < -slack else "better" if delta > slack else "same"
             rows.append(Row(key, metric, before, after, mark))
+    return rows + _compare_claims(baseline.get("claims", {}), current.get("claims", {}))
+
+
+def _compare_claims(old: dict, new: dict) -> list[Row]:
+    """Rows for the claims' verdicts (see the module's docstring for the marks)."""
+    from bench.harness.claims import HOLDING
+
+    rows = []
+    for name in sorted(set(old) | set(new)):
+        before, after = old.get(name), new.get(name)
+        if after is None:
+            mark = "missing"
+        elif before is None:
+            mark = "new"
+        elif before == after:
+            mark = "same"
+        elif before in HOLDING and after not in HOLDING:
+            mark = "claim broken"
+        elif after in HOLDING and before not in HOLDING:
+            mark = "claim holds"
+        else:
+            mark = "changed"
+        rows.append(Row(f"claim {name}", "verdict", before, after, mark))
     return rows

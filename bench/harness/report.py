@@ -39,7 +39,7 @@ from bench.harness.report_table import cell as _cell
 from bench.harness.report_table import esc as _esc
 from bench.harness.results import load_records, records_table, shading_label, write_atomic
 
-__all__ = ["PAGE_LIMIT", "SCRIPT", "write_report"]
+__all__ = ["PAGE_LIMIT", "SCRIPT", "html_page", "pyplot", "write_report"]
 
 #: Above this many jobs the report is one page per model, linked from index.html, so no
 #: page holds more than one model's images.
@@ -108,13 +108,13 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
     else:
         body = [*summary, *(part for m in models for part in sections[m]),
                 "<h2>Timing</h2>", _timing(records), "<h2>Failures</h2>", _failures(records)]
-    page = _page(f"bench report: {_esc(run_dir.name)}",
+    page = html_page(f"bench report: {_esc(run_dir.name)}",
                  [f"<h1>Simplification benchmark: {_esc(run_dir.name)}</h1>",
                   _warnings_html(notes + refused), _protocol_note(records), *body])
     return write_atomic(run_dir / "index.html", page)
 
 
-def _page(title: str, parts: list[str]) -> str:
+def html_page(title: str, parts: list[str]) -> str:
     """A whole HTML page: ``title`` and ``parts`` are HTML already."""
     head = (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title>"
             f"<style>{_CSS}</style></head><body>")
@@ -124,7 +124,7 @@ def _page(title: str, parts: list[str]) -> str:
 def _model_page(run_dir: Path, model: str, section: list[str], records: list[dict]) -> str:
     """The page of one model in a split report: its section and its timing table."""
     own = [r for r in records if r["job"]["model"] == model]
-    return _page(f"bench report: {_esc(run_dir.name)} / {_esc(model)}",
+    return html_page(f"bench report: {_esc(run_dir.name)} / {_esc(model)}",
                  [f"<p><a href='index.html'>← summary of {_esc(run_dir.name)}</a></p>",
                   f"<h1>Simplification benchmark: {_esc(run_dir.name)}, {_esc(model)}</h1>",
                   _protocol_note(own), *section,
@@ -221,7 +221,7 @@ def _plot_text(text: str) -> str:
     return str(text).replace("$", r"\$")
 
 
-def _pyplot():
+def pyplot():
     """matplotlib's pyplot on the file-only backend, imported only for a report that
     draws (a run of failures alone draws nothing and skips the import)."""
     import matplotlib
@@ -237,7 +237,7 @@ def _plots(table, out, slug: str) -> str:
 
     if table.empty:
         return ""
-    plt = _pyplot()
+    plt = pyplot()
     # One curve per method, and per evaluation shading when a run has several.
     series = table.method if table.shading.nunique() == 1 else \
         table.method + " (" + table.shading + ")"
@@ -318,7 +318,7 @@ def _silhouette_plot(records: list[dict], out, slug: str) -> str:
     ok = [r for r in records if r["status"] == "ok" and r.get("silhouette_histogram")]
     if not ok:
         return ""
-    plt = _pyplot()
+    plt = pyplot()
     smallest = min(r["job"]["target_faces"] for r in ok)
     # Silhouettes do not depend on the evaluation shading: one bar set per method variant.
     first = {}

@@ -44,7 +44,9 @@ to show what the correction does to d_rms.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+
+from bench.harness.claims import Claim
 
 __all__ = ["Suite", "SUITES", "get_suite", "evaluation_protocols", "SHADINGS"]
 
@@ -66,6 +68,9 @@ class Suite:
     faces: dict = field(default_factory=dict)
     #: evaluation protocols as (shading, specular) pairs; every job runs under each
     protocols: tuple[tuple[str, bool], ...] = (("flat", False),)
+    #: the papers' claims this suite tests (:mod:`bench.harness.claims`); each is scoped
+    #: to the suite's models and budgets unless it narrows them itself
+    claims: tuple[Claim, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.protocols:
@@ -76,6 +81,12 @@ class Suite:
                                  f"is not (one of {'|'.join(SHADINGS)}, True|False)")
         if len(set(self.protocols)) != len(self.protocols):
             raise ValueError(f"suite {self.name!r} lists a protocol twice: {self.protocols}")
+        budgets = tuple(sorted({f for fs in self.faces.values() for f in fs}, reverse=True))
+        object.__setattr__(self, "claims", tuple(replace(
+            c, suite=self.name, models=c.models or self.models,
+            faces=c.faces or (budgets if not c.ratios else ()),
+            ratios=c.ratios or (self.ratios if not (c.faces or budgets) else ()))
+            for c in self.claims))
 
 
 def _scaled(faces: tuple[int, ...], of: int, to: int) -> tuple[int, ...]:
@@ -91,7 +102,16 @@ BUNNY_FACES = 56172
 SUITES = {
     "ci": Suite(
         "ci", "small enough for CI: bunny and torus at 2% and 1% of their faces, every "
-        "available method", models=("bunny", "torus"), ratios=(0.02, 0.01)),
+        "available method", models=("bunny", "torus"), ratios=(0.02, 0.01),
+        claims=(
+            Claim("ci-image-driven", "Lindstrom & Turk 2000, Fig. 6",
+                  "image-driven has a lower image error than qslim (at CI's budgets)",
+                  "d_rms", "image-driven", "qslim", below=1.0),
+            Claim("g2007-torus", "González et al. 2007, §4",
+                  "the Canny texture penalty gives a textured model a lower image error "
+                  "than its base method (quadric) alone", "d_rms", "canny-texture",
+                  "quadric", below=1.0, models=("torus",)),
+        )),
     "lt2000-bunny": Suite(
         "lt2000-bunny", "L&T 2000 §5.1 (Table 1, Figures 5-7): the bunny at Table 1's five "
         "sizes scaled to our bunny, and at 1,332 faces",
@@ -99,13 +119,47 @@ SUITES = {
         variants=(("image-driven", {}), ("memoryless", {}), ("qslim", {}),
                   ("fast-simplification", {})),
         faces={"bunny": tuple(sorted(
-            _scaled(LT2000_BUNNY_FACES, 69451, BUNNY_FACES) + (1332,), reverse=True))}),
+            _scaled(LT2000_BUNNY_FACES, 69451, BUNNY_FACES) + (1332,), reverse=True))},
+        claims=(
+            Claim("lt2000-fig1", "Lindstrom & Turk 2000, Fig. 1",
+                  "image-driven has a lower image error than geometry-driven (memoryless) "
+                  "simplification of the bunny at 1,333 faces", "d_rms", "image-driven",
+                  "memoryless", below=1.0, faces=(1332,), paper="3.75 vs 4.10",
+                  paper_value=3.75 / 4.10),
+            Claim("lt2000-fig6", "Lindstrom & Turk 2000, Fig. 6",
+                  "image-driven consistently has a lower image error than qslim",
+                  "d_rms", "image-driven", "qslim", below=1.0),
+            Claim("lt2000-fig6-memoryless", "Lindstrom & Turk 2000, Fig. 6",
+                  "image-driven consistently has a lower image error than memoryless",
+                  "d_rms", "image-driven", "memoryless", below=1.0),
+            Claim("lt2000-fig5", "Lindstrom & Turk 2000, Fig. 5",
+                  "image-driven has a lower mean geometric error than qslim",
+                  "hausdorff_mean", "image-driven", "qslim", below=1.0),
+            Claim("lt2000-fig5-memoryless", "Lindstrom & Turk 2000, Fig. 5",
+                  "memoryless has the least mean geometric error (below image-driven's)",
+                  "hausdorff_mean", "memoryless", "image-driven", below=1.0),
+        )),
     "lt2000-torus": Suite(
         "lt2000-torus", "L&T 2000 §5.4 (Plates 12-13): the textured torus at 512 faces",
         models=("torus",),
         variants=(("image-driven", {}), ("memoryless", {}), ("qslim-texture", {}),
                   ("quadric", {})),
-        faces={"torus": (512,)}),
+        faces={"torus": (512,)},
+        claims=(
+            Claim("lt2000-plate13", "Lindstrom & Turk 2000, Plate 13",
+                  "on the textured torus at 512 faces image-driven has a lower image error "
+                  "than QSlim", "d_rms", "image-driven", "qslim-texture", below=1.0,
+                  paper="5.99 vs 8.76", paper_value=5.99 / 8.76),
+            Claim("lt2000-plate13-memoryless", "Lindstrom & Turk 2000, Plate 13",
+                  "on the textured torus at 512 faces image-driven has a lower image error "
+                  "than geometry-driven (memoryless) simplification", "d_rms",
+                  "image-driven", "memoryless", below=1.0, paper="5.99 vs 7.29",
+                  paper_value=5.99 / 7.29),
+            Claim("lt2000-plate13-qslim", "Lindstrom & Turk 2000, Plate 13 and §5.4",
+                  "memoryless texture coordinates beat QSlim's even without a texture "
+                  "cost", "d_rms", "memoryless", "qslim-texture", below=1.0,
+                  paper="7.29 vs 8.76", paper_value=7.29 / 8.76),
+        )),
     "lt2000-interior": Suite(
         "lt2000-interior", "L&T 2000 §5.2 (Plates 2-3): the interior model at 2,000 faces; "
         "image-driven with 0 and 10 interior views against memoryless and qslim "
@@ -114,7 +168,18 @@ SUITES = {
         variants=(("image-driven", {"interior_views": 0}),
                   ("image-driven", {"interior_views": 10}),
                   ("memoryless", {}), ("qslim", {})),
-        faces={"interior": (2000,)}),
+        faces={"interior": (2000,)},
+        claims=(
+            Claim("lt2000-interior", "Lindstrom & Turk 2000, §5.2 and Plates 2-3",
+                  "with exterior views only, image-driven simplifies the hidden interior "
+                  "away: at least 90 % of the faces kept are on the exterior",
+                  "exterior_share", "image-driven[interior_views=0]", at_least=0.9,
+                  note="the paper shows it in pictures; 90 % is our threshold"),
+            Claim("lt2000-interior-memoryless", "Lindstrom & Turk 2000, §5.2",
+                  "image-driven keeps a larger share of exterior faces than memoryless",
+                  "exterior_share", "image-driven[interior_views=0]", "memoryless",
+                  at_least=1.0),
+        )),
     "lt2000-shading": Suite(
         "lt2000-shading", "L&T 2000 §5.3 (Plates 4, 8): the bunny at 1,332 faces optimised "
         "for flat and for Gouraud + specular shading, each evaluated flat and Gouraud + "
@@ -123,7 +188,19 @@ SUITES = {
         variants=(("image-driven", {"shading": "flat"}),
                   ("image-driven", {"shading": "gouraud", "specular": True}), ("qslim", {})),
         faces={"bunny": (1332,)},
-        protocols=(("flat", False), ("gouraud", True))),
+        protocols=(("flat", False), ("gouraud", True)),
+        claims=(
+            Claim("lt2000-shading-gouraud", "Lindstrom & Turk 2000, §5.3 and Plate 8",
+                  "optimised for Gouraud shading with specular highlights, image-driven "
+                  "has a lower image error under that shading than optimised for flat",
+                  "d_rms", "image-driven[shading=gouraud,specular=true]",
+                  "image-driven[shading=flat]", below=1.0, shading="gouraud-spec"),
+            Claim("lt2000-shading-flat", "Lindstrom & Turk 2000, §5.3 and Plate 4",
+                  "optimised for flat shading, image-driven has a lower image error under "
+                  "flat shading than optimised for Gouraud with specular highlights",
+                  "d_rms", "image-driven[shading=flat]",
+                  "image-driven[shading=gouraud,specular=true]", below=1.0, shading="flat"),
+        )),
     "w2003": Suite(
         "w2003", "Williams et al. 2003 §6: perceptual-mt's four error metrics (perceptual, "
         "object, screen, screen-silhouette) on torus-puzzle and the bunny at 90% and 98% "
@@ -132,7 +209,21 @@ SUITES = {
         variants=tuple(("perceptual-mt", {"error": e})
                        for e in ("perceptual", "object", "screen", "screen-silhouette")),
         ratios=(0.10, 0.02),
-        protocols=(("gouraud", True),)),
+        protocols=(("gouraud", True),),
+        claims=(
+            Claim("w2003-98", "Williams et al. 2003, Plate 2 and Fig. 4",
+                  "at 98 % simplification with per-vertex lighting the perceptual metric "
+                  "gives a lower image error than screen-space deviation", "d_rms",
+                  "perceptual-mt[error=perceptual]", "perceptual-mt[error=screen]",
+                  below=1.0, ratios=(0.02,), paper="ltdiff 3,123 vs 3,689",
+                  paper_value=3123 / 3689,
+                  note="the paper measures with its own ltdiff; ours is d_rms"),
+            Claim("w2003-98-flip", "Williams et al. 2003, Plate 2 and Fig. 4",
+                  "the same, measured with FLIP", "flip",
+                  "perceptual-mt[error=perceptual]", "perceptual-mt[error=screen]",
+                  below=1.0, ratios=(0.02,), paper="ltdiff 3,123 vs 3,689",
+                  paper_value=3123 / 3689),
+        )),
     "g2008": Suite(
         "g2008", "González et al. 2008 (WSCG): entropy-twin (with and without the UV "
         "correction) against qslim, qslim-texture, quadric and canny-texture on game-style "
@@ -144,7 +235,15 @@ SUITES = {
                   ("canny-texture", {})),
         faces={"crate": (300, 100), "barrel": (300, 100), "bunny-textured": (1000, 500),
                "bunny-textured-815": (100,), "bunny-textured-4698": (500,),
-               "torus-13810": (1000,)}),
+               "torus-13810": (1000,)},
+        claims=(
+            Claim("g2008-uv-correction", "González et al. 2008, §3",
+                  "the UV correction lowers entropy-twin's image error on textured meshes",
+                  "d_rms", "entropy-twin", "entropy-twin[uv_correction=false]", below=1.0),
+            Claim("g2008-seams", "González et al. 2008, §3",
+                  "twin edges keep the seams of game-style meshes closed: no seam cracks",
+                  "seam_cracks", "entropy-twin", below=0.5, models=("crate", "barrel")),
+        )),
 }
 
 

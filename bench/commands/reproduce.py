@@ -1,0 +1,116 @@
+"""``bench reproduce [--claims NAME,...] [--out DIR]``: run the suites that the papers'
+claims need (each in ``DIR/<suite>``, reusing its records as ``--resume`` does), decide
+every claim from the records, and write ``DIR/claims.csv`` and a Reproduction page
+(``DIR/index.html``)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+from bench.errors import InputError, UnknownNameError
+from bench.harness.claims import evaluate_claim
+from bench.harness.suites import SUITES
+from bench.registry import suggest
+
+#: Columns of claims.csv, in order.
+CSV_COLUMNS = ["claim", "suite", "source", "statement", "metric", "method", "against",
+               "test", "paper", "paper_value", "rows", "passed", "worst", "verdict"]
+
+
+def add_parser(sub, name: str) -> None:
+    p = sub.add_parser(name, help="test the papers' claims: run their suites, write a "
+                       "claims table", description=__doc__)
+    p.add_argument("--claims", help="comma-separated claim names (default: every claim; "
+                   "bench list claims)")
+    p.add_argument("--out", default="reports/reproduce",
+                   help="folder of the suite runs and the claims table "
+                   "(default: reports/reproduce)")
+    p.add_argument("--jobs", "-j", default=None, metavar="N",
+                   help="worker processes for the suite runs (default: CPU count)")
+    p.add_argument("--timeout", default="900", metavar="S", help="seconds per job "
+                   "(default 900)")
+    p.add_argument("--no-run", action="store_true", help="decide the claims from the "
+                   "records already in DIR; run nothing")
+    p.set_defaults(run=run)
+
+
+def all_claims() -> dict:
+    """Every suite's claims by name, in the suites' order."""
+    return {c.name: c for s in SUITES.values() for c in s.claims}
+
+
+def selected(text: str | None) -> list:
+    known = all_claims()
+    names = [t.strip() for t in (text or "").split(",") if t.strip()]
+    for n in names:
+        if n not in known:
+            raise UnknownNameError(f"unknown claim '{n}'{suggest(n, known)} (bench list "
+                                   "claims shows them)")
+    return [known[n] for n in names] if names else list(known.values())
+
+
+def run(args) -> int:
+    from bench.commands import one_line
+    from bench.commands import run as run_cmd
+    from bench.harness.results import load_records
+
+    claims = selected(args.claims)
+    out = Path(args.out)
+    run_cmd._check_out(out)
+    suites = list(dict.fromkeys(c.suite for c in claims))
+    start, status = time.perf_counter(), 0
+    if not args.no_run:
+        for i, suite in enumerate(suites, 1):
+            print(f"bench reproduce: suite {i} of {len(suites)}: {suite}", file=sys.stderr)
+            status |= run_cmd.run(argparse.Namespace(
+                suite=suite, out=str(out / suite), resume=True,
+                jobs=args.jobs or str(os.cpu_count() or 1), timeout=args.timeout, models=None, methods=None,
+                faces=None, ratios=None, shading=None, specular=False, executor="local",
+                scheduler=None, no_report=False, single_file=False))
+    seconds = None if args.no_run else time.perf_counter() - start
+    records = {s: load_records(out / s) if (out / s / "records").is_dir() else []
+               for s in suites}
+    results = [evaluate_claim(c, records[c.suite]) for c in claims]
+    _write_csv(out, results)
+    from bench.harness.report_claims import write_reproduction
+
+    page = write_reproduction(out, results, seconds)
+    width = max(len(c.name) for c in claims)
+    print(f"{'claim':<{width}}  {'paper':<24} {'ours':<28} verdict")
+    for res in results:
+        print(one_line(f"{res.claim.name:<{width}}  {res.claim.paper or 'qualitative':<24} "
+                       f"{res.summary:<28} {res.verdict}"))
+    took = f" in {seconds / 60:.1f} min" if seconds is not None else ""
+    print(f"bench: {len(results)} claims{took}; wrote {out / 'claims.csv'} and {page}",
+          file=sys.stderr)
+    return status
+
+
+def _write_csv(out: Path, results: list) -> None:
+    import pandas as pd
+
+    from bench.harness.results import write_atomic
+
+    rows = []
+    for res in results:
+        c = res.claim
+        worst = res.worst
+        rows.append({"claim": c.name, "suite": c.suite, "source": c.source,
+                     "statement": c.statement, "metric": c.metric, "method": c.method,
+                     "against": c.against or "", "test": c.test, "paper": c.paper,
+                     "paper_value": "" if c.paper_value is None else c.paper_value,
+                     "rows": len(res.rows), "passed": res.passed,
+                     "worst": "" if worst is None or math.isnan(worst) else worst,
+                     "verdict": res.verdict})
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        write_atomic(out / "claims.csv", pd.DataFrame(rows, columns=CSV_COLUMNS)
+                     .to_csv(index=False))
+    except OSError as exc:
+        raise InputError(f"{out / 'claims.csv'}: cannot write it ({exc.strerror or exc})") \
+            from None

@@ -1,0 +1,202 @@
+"""The papers' claims as data, and their verdicts from a run's records.
+
+A :class:`Claim` is a declarative entry kept with the suite that tests it
+(:mod:`bench.harness.suites`): what the paper says, where, which metric decides it, and
+how — the ratio of one method variant's value to another's, or one variant's value on
+its own — with our threshold and the paper's own figure where it gives one.
+:func:`evaluate_claim` reads only records (never a number typed in): every (model,
+budget, evaluation shading) where the records it needs exist and are ``ok`` gives one
+row of evidence, and the rows give the verdict:
+
+=====================  ==================================================================
+verdict                when
+=====================  ==================================================================
+``holds``              every row passes the threshold (and, for a ratio the paper gives,
+                       our worst ratio is at least as strong as the paper's)
+``holds, weaker``      every row passes, but our worst ratio is weaker than the paper's
+``mixed``              some rows pass and some do not (the summary says how many)
+``does not hold``      no row passes
+``no data``            no row could be made (the suite did not run, or its jobs failed)
+=====================  ==================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+__all__ = ["Claim", "ClaimResult", "VERDICTS", "HOLDING", "evaluate_claim", "claim_rows"]
+
+#: The verdicts, best first.
+VERDICTS = ("holds", "holds, weaker", "mixed", "does not hold", "no data")
+#: Verdicts under which a claim counts as holding (for ``bench check``).
+HOLDING = ("holds", "holds, weaker")
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of a paper, tested by the records of one suite.
+
+    ``method`` and ``against`` are method labels as a run writes them
+    (``name[key=value,...]``). With ``against``, a row's value is ``metric(method) /
+    metric(against)`` on the same model, budget and shading; without it, the value is
+    ``metric(method)``. A row passes when its value is below ``below``, or at least
+    ``at_least`` (exactly one is given). ``models``, ``faces`` and ``ratios`` (a budget
+    as a fraction of the model's faces) narrow the rows; empty, every one of the suite's
+    counts. ``shading`` names the evaluation shading (``flat``, ``gouraud-spec``, ...)."""
+
+    name: str
+    source: str  # paper and figure or section
+    statement: str
+    metric: str
+    method: str
+    against: str | None = None
+    below: float | None = None
+    at_least: float | None = None
+    models: tuple[str, ...] = ()
+    faces: tuple[int, ...] = ()
+    ratios: tuple[float, ...] = ()
+    shading: str | None = None
+    #: the paper's own figure as it gives it, e.g. "3.75 vs 4.10" ("" when qualitative)
+    paper: str = ""
+    #: the same as a value comparable with ours (a ratio), or None
+    paper_value: float | None = None
+    #: the suite that tests it (set by the suite that lists the claim)
+    suite: str = ""
+    #: a note for the reader: how our threshold was chosen, what the evidence misses
+    note: str = ""
+
+    def __post_init__(self) -> None:
+        if (self.below is None) == (self.at_least is None):
+            raise ValueError(f"claim {self.name!r}: give exactly one of below, at_least")
+
+    @property
+    def test(self) -> str:
+        """The pass condition in words, e.g. ``d_rms ratio < 1``."""
+        what = f"{self.metric} ratio" if self.against else self.metric
+        return f"{what} < {self.below:g}" if self.below is not None else \
+            f"{what} >= {self.at_least:g}"
+
+    def passes(self, value: float) -> bool:
+        if not math.isfinite(value):
+            return False
+        return value < self.below if self.below is not None else value >= self.at_least
+
+
+@dataclass
+class ClaimResult:
+    """A claim's evidence rows and verdict."""
+
+    claim: Claim
+    rows: list[dict] = field(default_factory=list)
+    verdict: str = "no data"
+
+    @property
+    def passed(self) -> int:
+        return sum(r["passes"] for r in self.rows)
+
+    @property
+    def worst(self) -> float | None:
+        """The value furthest on the failing side (None without rows)."""
+        values = [r["value"] for r in self.rows if not math.isnan(r["value"])]
+        if not values:
+            return None
+        return max(values) if self.claim.below is not None else min(values)
+
+    @property
+    def summary(self) -> str:
+        """The evidence in one line: the value (or its range) and how many rows pass."""
+        if not self.rows:
+            return "no records"
+        values = [r["value"] for r in self.rows]
+        lo, hi = min(values), max(values)
+        shown = f"{lo:.3g}" if lo == hi else f"{lo:.3g}-{hi:.3g}"
+        return f"{shown} ({self.passed} of {len(self.rows)} pass)"
+
+
+def _shading(record: dict) -> str:
+    from bench.harness.results import shading_label
+
+    return shading_label(record["job"]["protocol"])
+
+
+def _in_budget(claim: Claim, record: dict) -> bool:
+    target = record["job"]["target_faces"]
+    if claim.faces and target not in claim.faces:
+        return False
+    if claim.ratios:
+        n = (record.get("model") or {}).get("faces")
+        if not isinstance(n, int) or n <= 0:
+            return False
+        return any(abs(target - r * n) <= 1 for r in claim.ratios)
+    return True
+
+
+def _value(record: dict, metric: str) -> float:
+    value = (record.get("metrics") or {}).get(metric)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return math.nan
+    return float(value)
+
+
+def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
+    """The evidence of ``claim`` in ``records``: one row per (model, budget, shading)
+    where the claim's records exist and are ``ok``, sorted."""
+    from bench.harness.check import canonical_label
+
+    wanted = {canonical_label(claim.method): "method"}
+    if claim.against:
+        wanted[canonical_label(claim.against)] = "against"
+    cells: dict[tuple, dict] = {}
+    for r in records:
+        job = r.get("job") or {}
+        role = wanted.get(canonical_label(job.get("label", "")))
+        if role is None or r.get("status") != "ok":
+            continue
+        if claim.models and job["model"] not in claim.models:
+            continue
+        shading = _shading(r)
+        if (claim.shading and shading != claim.shading) or not _in_budget(claim, r):
+            continue
+        key = (job["model"], job["target_faces"], shading)
+        cells.setdefault(key, {})[role] = r
+    rows = []
+    for (model, target, shading), got in sorted(cells.items()):
+        if "method" not in got or (claim.against and "against" not in got):
+            continue
+        mine = _value(got["method"], claim.metric)
+        row = {"model": model, "target_faces": target, "shading": shading,
+               "faces": _value(got["method"], "faces"), "method_value": mine,
+               "against_value": math.nan, "method_key": got["method"]["job"].get("key"),
+               "against_key": got["against"]["job"].get("key") if claim.against else None}
+        if claim.against:
+            theirs = _value(got["against"], claim.metric)
+            row["against_value"] = theirs
+            row["value"] = mine / theirs if theirs else math.nan  # nan stays nan
+        else:
+            row["value"] = mine
+        if math.isnan(row["method_value"]):
+            continue  # the metric is undefined for this model (e.g. exterior_share)
+        row["passes"] = claim.passes(row["value"])
+        rows.append(row)
+    return rows
+
+
+def evaluate_claim(claim: Claim, records: list[dict]) -> ClaimResult:
+    """``claim``'s rows in ``records`` and its verdict (see the module's table)."""
+    result = ClaimResult(claim, claim_rows(claim, records))
+    if not result.rows:
+        return result
+    passed = result.passed
+    if passed == 0:
+        result.verdict = "does not hold"
+    elif passed < len(result.rows):
+        result.verdict = "mixed"
+    else:
+        result.verdict = "holds"
+        paper, worst = claim.paper_value, result.worst
+        if paper is not None and worst is not None:
+            weaker = worst > paper if claim.below is not None else worst < paper
+            if weaker:
+                result.verdict = "holds, weaker"
+    return result
