@@ -38,14 +38,14 @@ their typed form (``qualitythr=0.50``) matches the same job of a current run.
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.errors import BenchError, InputError
+from bench.errors import InputError
+from bench.harness.jobs import canonical_label
 
 __all__ = ["BASELINE_SCHEMA", "FAILING_MARKS", "baseline_problem", "canonical_label",
            "check_tolerance", "compare", "load_baseline", "make_baseline", "metric_directions"]
@@ -71,30 +71,6 @@ def _key(model: str, label: str, target: int, shading: str) -> str:
     """``model | method | target | shading``; the shading is the evaluation's, with
     ``-spec`` when specular was on (:func:`bench.harness.results.shading_label`)."""
     return f"{model} | {canonical_label(label)} | {target} | {shading}"
-
-
-@functools.cache
-def canonical_label(label: str) -> str:
-    """``name[key=value,...]`` with its parameters as a job holds them now
-    (:func:`bench.method.canonical_params`: defaults left out, values in their shortest
-    form); the label unchanged when it does not parse or its method is not installed."""
-    from bench.harness.runner import method_label
-    from bench.method import canonical_params
-    from bench.registry import registry
-
-    name, bracket, rest = label.partition("[")
-    if not bracket or not rest.endswith("]"):
-        return label
-    params = {}
-    for item in rest[:-1].split(","):
-        key, sep, value = item.partition("=")
-        if not sep:
-            return label
-        params[key] = value
-    try:
-        return method_label(name, canonical_params(registry("method").load(name).Params, params))
-    except (BenchError, ImportError):
-        return label
 
 
 def _canonical_entries(entries: dict) -> dict:

@@ -24,6 +24,7 @@ compiled numba kernels warm.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import io
 import os
 import platform
@@ -44,12 +45,13 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
+from bench.errors import BenchError
 from bench.harness.keys import job_key
 from bench.harness.results import SCHEMA_VERSION, write_file, write_record
 from metrics.protocol import Protocol
 
-__all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "environment", "evaluate_result",
-           "failed_result",
+__all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "canonical_label", "environment",
+           "evaluate_result", "failed_result",
            "method_label", "plan", "run_job", "store_result"]
 
 #: Protocol views shown in the report's image sheets (spread over the sphere).
@@ -61,6 +63,29 @@ def method_label(name: str, params: dict) -> str:
     if not params:
         return name
     return name + "[" + ",".join(f"{k}={_fmt(v)}" for k, v in sorted(params.items())) + "]"
+
+
+@functools.cache
+def canonical_label(label: str) -> str:
+    """``name[key=value,...]`` with its parameters as a job holds them now
+    (:func:`bench.method.canonical_params`: defaults left out, values in their shortest
+    form); the label unchanged when it does not parse or its method is not installed."""
+    from bench.method import canonical_params
+    from bench.registry import registry
+
+    name, bracket, rest = label.partition("[")
+    if not bracket or not rest.endswith("]"):
+        return label
+    params = {}
+    for item in rest[:-1].split(","):
+        key, sep, value = item.partition("=")
+        if not sep:
+            return label
+        params[key] = value
+    try:
+        return method_label(name, canonical_params(registry("method").load(name).Params, params))
+    except (BenchError, ImportError):
+        return label
 
 
 def _fmt(value) -> str:
@@ -196,8 +221,6 @@ def run_job(job: Job, cache_dir: Path, worker: dict | None = None, mesh=None) ->
     try:
         _run_job(job, Path(cache_dir), result, mesh)
     except Exception as exc:  # noqa: BLE001 (any failure of a job is its record's error)
-        from bench.errors import BenchError
-
         record["status"] = "failed"
         record["error"] = str(exc) if isinstance(exc, BenchError) else \
             f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}"
