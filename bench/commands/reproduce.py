@@ -81,10 +81,11 @@ def run(args) -> int:
 
     page = write_reproduction(out, results, seconds)
     width = max(len(c.name) for c in claims)
-    print(f"{'claim':<{width}}  {'paper':<24} {'ours':<28} verdict")
+    print(f"{'claim':<{width}}  {'test':<26} {'paper':<22} {'ours':<28} verdict")
     for res in results:
-        print(one_line(f"{res.claim.name:<{width}}  {res.claim.paper or 'qualitative':<24} "
-                       f"{res.summary:<28} {res.verdict}"))
+        print(one_line(f"{res.claim.name:<{width}}  {res.claim.test:<26} "
+                       f"{res.claim.paper or 'qualitative':<22} {res.summary:<28} "
+                       f"{res.verdict}"))
     took = f" in {seconds / 60:.1f} min" if seconds is not None else ""
     print(f"bench: {len(results)} claims{took}; wrote {out / 'claims.csv'} and {page}",
           file=sys.stderr)

@@ -110,7 +110,7 @@ class ClaimResult:
             return "no records"
         values = [r["value"] for r in self.rows]
         lo, hi = min(values), max(values)
-        shown = f"{lo:.3g}" if lo == hi else f"{lo:.3g}-{hi:.3g}"
+        shown = f"{lo:.4g}" if lo == hi else f"{lo:.4g}-{hi:.4g}"
         return f"{shown} ({self.passed} of {len(self.rows)} pass)"
 
 
