@@ -160,11 +160,11 @@ def test_job_past_the_timeout_fails_and_its_worker_goes_on(ico, tmp_path):
     marker = tmp_path / "attempts.txt"
     late = Job(ico, "sleep", 100, {"seconds": "600", "marker": str(marker)}, SMALL)
     after = Job(ico, "qslim", 100, {}, SMALL)
-    execute([late, after], tmp_path / "out", workers=1, timeout=60, progress=False,
+    execute([late, after], tmp_path / "out", workers=1, timeout=10, progress=False,
             executor="dask")
     records = _records(tmp_path / "out")
     assert records[late.key]["status"] == "failed"
-    assert records[late.key]["error"] == "timed out after 60 s"
+    assert records[late.key]["error"] == "timed out after 10 s"
     assert records[after.key]["status"] == "ok", records[after.key]["error"]
     assert records[late.key]["environment"]["worker"]["name"] == \
         records[after.key]["environment"]["worker"]["name"]

@@ -32,8 +32,8 @@ def add_parser(sub, name: str) -> None:
                    "(default: reports/reproduce)")
     p.add_argument("--jobs", "-j", default=None, metavar="N",
                    help="worker processes for the suite runs (default: CPU count)")
-    p.add_argument("--timeout", default="900", metavar="S", help="seconds per job "
-                   "(default 900)")
+    p.add_argument("--timeout", default="900", metavar="S",
+                   help="seconds a job's method may take (default 900)")
     p.add_argument("--no-run", action="store_true", help="decide the claims from the "
                    "records already in DIR; run nothing")
     p.set_defaults(run=run)
@@ -69,8 +69,8 @@ def run(args) -> int:
             print(f"bench reproduce: suite {i} of {len(suites)}: {suite}", file=sys.stderr)
             status |= run_cmd.run(argparse.Namespace(
                 suite=suite, out=str(out / suite), resume=True,
-                jobs=args.jobs or str(os.cpu_count() or 1), timeout=args.timeout, models=None, methods=None,
-                faces=None, ratios=None, shading=None, specular=False, executor="local",
+                jobs=args.jobs or str(os.cpu_count() or 1), timeout=args.timeout,
+                models=None, methods=None, faces=None, ratios=None, shading=None, specular=False, executor="local",
                 scheduler=None, no_report=False, single_file=False))
     seconds = None if args.no_run else time.perf_counter() - start
     records = {s: load_records(out / s) if (out / s / "records").is_dir() else []

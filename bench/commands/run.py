@@ -48,7 +48,8 @@ def add_parser(sub, name: str) -> None:
                    "dask; without it a LocalCluster of --jobs workers is started)")
     p.add_argument("--resume", action="store_true", help="skip jobs whose record exists in DIR")
     p.add_argument("--timeout", default="900", metavar="S",
-                   help="seconds per job, finite and above 0 (default 900)")
+                   help="seconds a job's method may take, finite and above 0 (default "
+                   "900; loading, warm-up and evaluation have 30 min each of their own)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML report")
     p.add_argument("--single-file", action="store_true", help="inline every image in "
                    "index.html (one self-contained file, for small runs) instead of "

@@ -207,19 +207,30 @@ def _now() -> str:
 
 # -- running one job (inside a job process) ---------------------------------------------------
 
-def run_job(job: Job, cache_dir: Path, worker: dict | None = None, mesh=None) -> JobResult:
+#: Seconds a job may spend outside its method: loading the model and warming up (numba
+#: may compile for minutes on a cold cache), or evaluating the result. ``--timeout``
+#: bounds the method alone, so a 5 ms simplification passes ``--timeout 1``.
+PHASE_LIMIT = 1800.0
+#: The phases of a job, as the job process reports them to its supervisor.
+PHASES = ("setup", "method", "evaluation")
+
+
+def run_job(job: Job, cache_dir: Path, worker: dict | None = None, mesh=None,
+            phase: Callable[[str], None] = lambda name: None) -> JobResult:
     """Simplify, evaluate and describe one job; never raises (errors become records).
 
     ``cache_dir`` holds work a method shares between jobs on this machine (e.g.
     perceptual-mt's Multi-Triangulation); ``worker`` describes who ran the job (it goes
     into the record's environment); ``mesh`` is the model's mesh when the caller loaded
-    it already (a Dask client ships file models, which its workers may not see).
+    it already (a Dask client ships file models, which its workers may not see);
+    ``phase(name)`` is told when the method starts (``"method"``) and when it ends
+    (``"evaluation"``), so a supervisor can time the method alone.
     """
     record = {"schema": SCHEMA_VERSION, "job": job.as_dict(), "status": "failed",
               "error": None, "created": _now(), "environment": _environment_of(worker)}
     result = JobResult(job, record)
     try:
-        _run_job(job, Path(cache_dir), result, mesh)
+        _run_job(job, Path(cache_dir), result, mesh, phase)
     except Exception as exc:  # noqa: BLE001 (any failure of a job is its record's error)
         record["status"] = "failed"
         record["error"] = str(exc) if isinstance(exc, BenchError) else \
@@ -227,7 +238,7 @@ def run_job(job: Job, cache_dir: Path, worker: dict | None = None, mesh=None) ->
     return result
 
 
-def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh) -> None:
+def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     from bench.harness.warmup import warm_up
     from bench.method import parse_params, run_method
     from bench.models import resolve_model
@@ -257,7 +268,9 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh) -> None:
            "cache_dir": str(cache_dir)}
     # numba compilation or cache loading is not method time: warm up first, apart
     compile_seconds = warm_up(method_cls, params, ctx)
+    phase("method")
     simplified = run_method(method_cls(params), mesh, job.target_faces, ctx)
+    phase("evaluation")
     stats = dict(simplified.stats)
     stats["compile_seconds"] = compile_seconds
     stats["peak_mb"] = peak.megabytes()
@@ -445,7 +458,8 @@ def serve(conn: Connection) -> None:
         if message is None:
             return
         job, cache_dir, worker, mesh = message
-        conn.send(run_job(job, Path(cache_dir), worker, mesh))
+        conn.send(run_job(job, Path(cache_dir), worker, mesh,
+                          lambda name: conn.send(("phase", name))))
 
 
 def _exit_with_parent() -> None:
@@ -466,9 +480,11 @@ class JobProcess:
     """A job process and its connection, driven by its supervisor one job at a time.
 
     :meth:`submit` hands a job over; the supervisor waits on :attr:`conn` (readable when
-    the result is there or the process died) and calls :meth:`collect`, or :meth:`kill`
-    when the job ran out of time. :meth:`run` does all of that for a supervisor with one
-    job process (a Dask worker thread).
+    the job reports a phase, its result is there or the process died) and calls
+    :meth:`collect` (None while the job goes on), and :meth:`timed_out` when
+    :meth:`expired` says the phase ran out of time: the method's phase has ``timeout``
+    seconds, the others :data:`PHASE_LIMIT`. :meth:`run` does all of that for a
+    supervisor with one job process (a Dask worker thread).
     """
 
     def __init__(self, name: str = ""):
@@ -484,7 +500,7 @@ class JobProcess:
         self.conn.send(list(sys.path))
         self.job: Job | None = None
         self.worker: dict | None = None
-        self.started = 0.0
+        self.phase, self.started = "setup", 0.0  # the running job's phase, since when
 
     @property
     def usable(self) -> bool:
@@ -492,20 +508,28 @@ class JobProcess:
         return not self.conn.closed and self.process.poll() is None
 
     def submit(self, job: Job, cache_dir: Path, worker: dict | None = None, mesh=None) -> None:
-        self.job, self.worker, self.started = job, worker, time.monotonic()
+        self.job, self.worker = job, worker
+        self.phase, self.started = "setup", time.monotonic()
         try:
             self.conn.send((job, str(cache_dir), worker, mesh))
         except OSError:
             pass  # a dead process: collect() turns it into a failed record
 
-    def collect(self) -> JobResult:
-        """The submitted job's result once :attr:`conn` is readable: the process's own,
-        or a failed one if the process died. A process whose job failed is ended (the
-        supervisor starts a fresh one for the next job)."""
-        job, self.job = self.job, None
+    def collect(self) -> JobResult | None:
+        """Once :attr:`conn` is readable: None when the job only reported a new phase
+        (it goes on), else its result: the process's own, or a failed one if the process
+        died. A process whose job failed is ended (the supervisor starts a fresh one for
+        the next job)."""
         try:
             result = self.conn.recv()
         except (EOFError, OSError):
+            result = None
+        if isinstance(result, tuple) and len(result) == 2 and result[0] == "phase" and \
+                result[1] in PHASES:
+            self.phase, self.started = result[1], time.monotonic()
+            return None
+        job, self.job = self.job, None
+        if not isinstance(result, JobResult):
             try:
                 code = self.process.wait(timeout=2)  # let a dying process report its code
             except subprocess.TimeoutExpired:
@@ -517,28 +541,38 @@ class JobProcess:
             self.kill()
         return result
 
+    def _limit(self, timeout: float) -> float:
+        return timeout if self.phase == "method" else PHASE_LIMIT
+
     def expired(self, timeout: float) -> bool:
-        return self.job is not None and time.monotonic() - self.started > timeout
+        """The running job's phase is past its limit (``timeout`` for the method)."""
+        return self.job is not None and time.monotonic() - self.started > self._limit(timeout)
 
     def timed_out(self, timeout: float) -> JobResult:
         """Kill the process over its running job and fail the job for its time."""
         job, self.job = self.job, None
         self.kill()
-        return failed_result(job, f"timed out after {timeout:g} s", self.worker)
+        why = f"timed out after {timeout:g} s" if self.phase == "method" else \
+            f"its {self.phase} took longer than {PHASE_LIMIT:g} s (the job's limit " \
+            "outside the method, which --timeout bounds)"
+        return failed_result(job, why, self.worker)
 
     def run(self, job: Job, cache_dir: Path, timeout: float, worker: dict | None = None,
             mesh=None, cancelled: Callable[[], bool] = lambda: False) -> JobResult | None:
         """Run one job to its end, its time limit, or until ``cancelled()`` (checked every
         second; the process is then killed and None returned)."""
         self.submit(job, cache_dir, worker, mesh)
-        while not self.conn.poll(1.0):
-            if self.expired(timeout):
+        while True:
+            if self.conn.poll(1.0):
+                result = self.collect()
+                if result is not None:
+                    return result
+            elif self.expired(timeout):
                 return self.timed_out(timeout)
-            if cancelled():
+            elif cancelled():
                 self.job = None
                 self.kill()
                 return None
-        return self.collect()
 
     def kill(self) -> None:
         self.process.kill()

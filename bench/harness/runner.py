@@ -56,7 +56,9 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
 
     Returns the records in completion order. ``workers`` is the number of job processes
     (local) or of a LocalCluster's workers (dask without ``scheduler``); ``scheduler`` is
-    a Dask scheduler's address (dask only). A job past ``timeout`` seconds is failed.
+    a Dask scheduler's address (dask only). A job whose method runs past ``timeout``
+    seconds is failed, as is one whose set-up or evaluation runs past
+    :data:`~bench.harness.jobs.PHASE_LIMIT`.
     """
     from tqdm import tqdm
 
@@ -156,7 +158,9 @@ class LocalPool:
             ready = wait([p.conn for p in busy], timeout=0.5)
             for proc in busy:
                 if proc.conn in ready:
-                    done(proc.collect())
+                    result = proc.collect()  # None: the job only reported a phase
+                    if result is not None:
+                        done(result)
                 elif proc.expired(timeout):
                     done(proc.timed_out(timeout))
 
