@@ -69,6 +69,9 @@ Choices where the paper is vague, and why:
   to that size by the engine's Garland-Heckbert 1998 quadrics (seams closed, charts
   kept), as image-driven does with memoryless; Table 1's sizes are left untouched.
   ``presimplify_faces=-1`` turns it off;
+* ``placement="optimal"`` puts the kept vertex at the quadric's optimal point (a
+  full-edge collapse) instead of an endpoint, for ablation only: the paper's half-edge
+  collapse is the default;
 * ``normals_angle`` = 60° by default, the smoothing angle of Unity's model importer:
   a crate's 90° edges stay hard, a sphere's facets (a few degrees apart, tens of
   degrees after heavy simplification) are smoothed.
@@ -247,6 +250,9 @@ class EntropyTwin(Method):
         max_normal_rotation: float = 90.0
         #: faces after a quadric pre-simplification; 0: twenty times the target; -1: none
         presimplify_faces: int = 0
+        #: where the kept vertex goes: "endpoints" (a half-edge collapse, the paper's) or
+        #: "optimal" (the quadric's point, a full-edge collapse; for ablation)
+        placement: str = "endpoints"
 
     def _check(self):
         p = self.params
@@ -262,13 +268,16 @@ class EntropyTwin(Method):
             raise ParamError(f"entropy-twin: canny_weight must be >= 0, got {p.canny_weight}")
         if not 0 < p.max_normal_rotation <= 180:
             raise ParamError("entropy-twin: max_normal_rotation must be in (0, 180] degrees")
+        if p.placement not in ("endpoints", "optimal"):
+            raise ParamError(f"entropy-twin: placement must be endpoints or optimal, got "
+                             f"{p.placement!r}")
         if p.presimplify_faces < -1:
             raise ParamError("entropy-twin: presimplify_faces must be >= -1 (0: twenty times "
                              "the target, -1: no pre-simplification)")
 
     def policy(self, canny: bool) -> Policy:
         p = self.params
-        return Policy(placement="endpoints", quadric_weight=0.0, memoryless_weight=0.0,
+        return Policy(placement=p.placement, quadric_weight=0.0, memoryless_weight=0.0,
                       boundary_weight=0.0,
                       canny_weight=p.canny_weight * p.views if canny else 0.0,
                       max_normal_rotation=p.max_normal_rotation, seam_rule=p.seam_rule,
