@@ -225,14 +225,17 @@ def test_list_all():
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     found = sections(proc.stdout)
-    assert list(found) == ["methods", "models", "metrics", "suites"]
-    suites = found.pop("suites")
+    assert list(found) == ["methods", "models", "metrics", "suites", "claims"]
+    suites, claims = found.pop("suites"), found.pop("claims")
     for kind, (count, table) in found.items():
         check_section(kind, count, table)
     from bench.harness.suites import SUITES
 
     count, table = suites
     assert count == len(SUITES) and set(table) - {"name"} == set(SUITES)
+    count, table = claims
+    names = {c.name for s in SUITES.values() for c in s.claims}
+    assert count == len(names) and set(table) - {"name"} == names
 
 
 def test_list_unknown_kind_is_a_usage_error():
