@@ -188,6 +188,10 @@ SUITES = {
                   note="never_seen_share counts the faces kept where no protocol view sees "
                   "the original (metrics/visibility.py); 2 % is our threshold, chosen "
                   "before measuring"),
+            Claim("lt2000-interior-never-seen-memoryless", "Lindstrom & Turk 2000, §5.2",
+                  "image-driven keeps fewer faces where no view sees the model than "
+                  "memoryless", "never_seen_share", "image-driven[interior_views=0]",
+                  "memoryless", below=1.0),
             Claim("lt2000-interior-memoryless", "Lindstrom & Turk 2000, §5.2",
                   "image-driven keeps a larger share of exterior faces than memoryless",
                   "exterior_share", "image-driven[interior_views=0]", "memoryless",
