@@ -519,6 +519,27 @@ case("simplify concave ASCII PLY polygon", *SIMPLIFY, "concave.ply", "out.obj", 
      pattern=r"^bench: warning: concave\.ply: triangulated polygon faces \(1 faces in the file "
      r"became 4 triangles; 1 concave, by ear clipping\)$",
      after=loads_back("out.obj", area_is(3.0)))
+def binary_l_ply(order: str) -> bytes:
+    """The L of L_CORNERS as a binary PLY (``order`` "<" or ">"), with a double and a
+    colour among its vertex properties and a ushort index list."""
+    import struct
+
+    kind = "little" if order == "<" else "big"
+    header = (f"ply\nformat binary_{kind}_endian 1.0\nelement vertex 6\nproperty double x\n"
+              "property float y\nproperty uchar red\nproperty float z\nelement face 1\n"
+              "property list uchar ushort vertex_indices\nend_header\n").encode()
+    rows = [tuple(float(v) for v in line.split()) for line in L_CORNERS.splitlines()]
+    body = b"".join(struct.pack(order + "dfBf", x, y, 7, z) for x, y, z in rows)
+    return header + body + struct.pack(order + "B6H", 6, 0, 1, 2, 3, 4, 5)
+
+
+for order, kind in (("<", "little"), (">", "big")):
+    case(f"simplify concave binary {kind}-endian PLY polygon", *SIMPLIFY, "concave.ply",
+         "out.obj", "--faces", "4", expect="ok",
+         files=text_file("concave.ply", binary_l_ply(order)),
+         pattern=r"^bench: warning: concave\.ply: triangulated polygon faces \(1 faces in the "
+         r"file became 4 triangles; 1 concave, by ear clipping\)$",
+         after=loads_back("out.obj", area_is(3.0)))
 case("simplify faces with 1 and 2 corners", *SIMPLIFY, "short.obj", "out.obj", "--faces", "4",
      expect="ok", files=text_file("short.obj", TET_OBJ + "f 1 2\nf 3\n"),
      pattern=r"^bench: warning: short\.obj: ignored 2 faces with fewer than 3 corners \(first "

@@ -1102,7 +1102,66 @@ def _scan_ply(path: Path) -> dict:
                 raise InputError(f"{path}: its last element (line {declared} of the data) "
                                  "is incomplete; the file is truncated")
         scan.update(_ply_ear_clip(head.split(b"end_header", 1)[0], path.read_bytes()))
+    elif re.search(rb"format\s+binary_(little|big)_endian", header) and b"end_header" in head:
+        text = _ply_binary_as_ascii(path.read_bytes())
+        if text is not None:  # it has polygons: clip the concave ones as in ASCII
+            ascii_header = text.split(b"end_header", 1)[0]
+            scan.update(_ply_ear_clip(ascii_header, text))
     return scan
+
+
+#: PLY scalar types and their NumPy codes.
+_PLY_TYPES = {b"char": "i1", b"int8": "i1", b"uchar": "u1", b"uint8": "u1", b"short": "i2",
+              b"int16": "i2", b"ushort": "u2", b"uint16": "u2", b"int": "i4",
+              b"int32": "i4", b"uint": "u4", b"uint32": "u4", b"float": "f4",
+              b"float32": "f4", b"double": "f8", b"float64": "f8"}
+
+
+def _ply_binary_as_ascii(data: bytes) -> bytes | None:
+    """A binary PLY of a vertex and a face element (scalar vertex properties, one index
+    list per face) that has a face of more than 3 corners, as the same PLY in ASCII, so
+    :func:`_ply_ear_clip` can clip its concave polygons; None for a triangle mesh, any
+    other layout or a file too short for its header (all left to trimesh)."""
+    header, sep, body = data.partition(b"end_header")
+    if not sep:
+        return None
+    body = body[2:] if body.startswith(b"\r\n") else body[1:]
+    order = "<" if b"binary_little_endian" in header else ">"
+    elements = re.findall(rb"element\s+(\S+)\s+(\d+)((?:\s*property[^\n]*)*)", header)
+    if [e[0] for e in elements] != [b"vertex", b"face"]:
+        return None
+    vprops = [line.split() for line in elements[0][2].splitlines() if line.strip()]
+    if any(len(w) != 3 or w[1] not in _PLY_TYPES for w in vprops):
+        return None
+    fprops = [line.split() for line in elements[1][2].splitlines() if line.strip()]
+    if len(fprops) != 1 or len(fprops[0]) != 5 or fprops[0][1] != b"list" or \
+            fprops[0][2] not in _PLY_TYPES or fprops[0][3] not in _PLY_TYPES:
+        return None
+    nv, nf = int(elements[0][1]), int(elements[1][1])
+    vtype = np.dtype([(w[2].decode("ascii", "replace"), order + _PLY_TYPES[w[1]])
+                      for w in vprops])
+    ctype = np.dtype(order + _PLY_TYPES[fprops[0][2]])
+    itype = np.dtype(order + _PLY_TYPES[fprops[0][3]])
+    if len(body) < nv * vtype.itemsize:
+        return None
+    vertices = np.frombuffer(body, vtype, nv)
+    at, faces = nv * vtype.itemsize, []
+    for _ in range(nf):
+        if at + ctype.itemsize > len(body):
+            return None
+        n = int(np.frombuffer(body, ctype, 1, at)[0])
+        at += ctype.itemsize
+        if n < 0 or at + n * itype.itemsize > len(body):
+            return None
+        faces.append(np.frombuffer(body, itype, n, at))
+        at += n * itype.itemsize
+    if all(len(f) <= 3 for f in faces):
+        return None
+    lines = [re.sub(rb"format\s+binary_\w+", b"format ascii", header).rstrip() +
+             b"\nend_header"]
+    lines += [" ".join(repr(v.item()) for v in row).encode() for row in vertices]
+    lines += [" ".join(str(int(i)) for i in (len(f), *f)).encode() for f in faces]
+    return b"\n".join(lines) + b"\n"
 
 
 def _ply_ear_clip(header: bytes, data: bytes) -> dict:
