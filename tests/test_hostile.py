@@ -554,6 +554,23 @@ case("simplify vn index out of range", *SIMPLIFY, "vn.obj", "out.obj", "--faces"
          "v 0 0 1\n", "v 0 0 1\nvn 0 0 1\n")),
      pattern=r"^vn\.obj: line 7: normal index -2 is out of range \(1 normals defined before "
      r"it\); the file is corrupt or truncated$")
+def latin_textured(root: Path) -> None:
+    """An OBJ whose mtllib and map_Kd name files in Latin-1 bytes (the file system's
+    names are UTF-8, as a Windows export copied to Linux has them)."""
+    import numpy as np
+    from PIL import Image
+
+    Image.fromarray(np.full((8, 8, 3), 200, np.uint8)).save(root / "textur\xe9.png")
+    uv = "vt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\nusemtl m\n"
+    faces = "f 1/1 3/3 2/2\nf 1/1 2/2 4/4\nf 1/1 4/4 3/3\nf 2/2 3/3 4/4\n"
+    (root / "latin.obj").write_bytes(("mtllib mat\xe9riau.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                      "v 0 0 1\n" + uv + faces).encode("latin-1"))
+    (root / "mat\xe9riau.mtl").write_bytes("newmtl m\nmap_Kd textur\xe9.png\n".encode("latin-1"))
+
+
+case("simplify Latin-1 material and texture names", *SIMPLIFY, "latin.obj", "out.obj",
+     "--faces", "4", expect="ok", files=latin_textured,
+     pattern=r"^latin: 4 -> 4 faces .*; wrote out\.obj, out\.png, out\.mtl$")
 case("simplify Latin-1 OBJ", *SIMPLIFY, "latin.obj", "out.obj", "--faces", "4", expect="ok",
      files=text_file("latin.obj", "# mod\xe8le export\xe9\n".encode("latin-1") + TET_OBJ.encode()),
      pattern=r"^latin: 4 -> 4 faces", after=loads_back("out.obj", faces_written(4)))
