@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from bench.harness.jobs import Job
-from bench.harness.runner import execute
+from bench.harness.runner import execute, remaining
 from bench.io.meshio import save_mesh
 from conftest import icosphere
 from metrics.protocol import Protocol
@@ -67,6 +67,19 @@ def test_a_killed_or_out_of_memory_job_fails_alone(ico, tmp_path):
     assert "MemoryError" in error and "\n" not in error
     for job in fine:
         assert records[job.key]["status"] == "ok", records[job.key]["error"]
+    # --resume runs the two failed jobs again and leaves the finished ones as they are;
+    # the killed one's second attempt succeeds (kill-self dies only on its first)
+    out = tmp_path / "out"
+    kept = {job.key: (out / "records" / f"{job.key}.json").stat().st_mtime_ns for job in fine}
+    todo = remaining([killed, fine[0], starved, fine[1]], out)
+    assert [job.key for job in todo] == [killed.key, starved.key]
+    execute(todo, out, workers=1, timeout=300, progress=False)
+    again = _records(out)
+    assert again[killed.key]["status"] == "ok", again[killed.key]["error"]
+    assert again[starved.key]["status"] == "failed"
+    assert {job.key: (out / "records" / f"{job.key}.json").stat().st_mtime_ns
+            for job in fine} == kept
+    assert all(again[job.key] == records[job.key] for job in fine)
 
 
 def test_a_run_killed_with_sigkill_is_resumed(ico, tmp_path):

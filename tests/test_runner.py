@@ -124,12 +124,23 @@ def test_method_variant_label(run):
     assert proc.returncode == 1
 
 
-def test_resume_skips_finished_jobs(run):
+def test_resume_skips_finished_jobs_and_runs_failed_ones_again(run, tmp_path):
     root, _ = run
+    out = tmp_path / "out"
+    shutil.copytree(root / "out", out)
+    shutil.copy(root / "ico.obj", tmp_path / "ico.obj")
+    kept = {p.name: p.stat().st_mtime_ns for p in (out / "records").glob("*qslim*.json")}
     proc = _bench("run", "--models", "ico.obj", "--methods", "qslim", "--faces", "100,60",
-                  "--out", "out", "--resume", "--no-report", cwd=root)
+                  "--out", "out", "--resume", "--no-report", cwd=tmp_path)
     assert "0 jobs" in proc.stderr
     assert proc.returncode == 1  # the directory still holds the failed jobs
+    proc = _bench("run", "--models", "ico.obj", "--methods", "qslim,raise", "--faces",
+                  "100,60", "--out", "out", "--resume", "--no-report", cwd=tmp_path)
+    assert "2 jobs" in proc.stderr  # the two failed raise jobs, run again
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "records").glob("*qslim*.json")} \
+        == kept
+    records = _records(out)
+    assert "deliberate failure" in records[("raise", 100)]["error"]
 
 
 def test_check_passes_on_itself_and_fails_on_doctored_results(run, tmp_path):

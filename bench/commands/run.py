@@ -46,7 +46,8 @@ def add_parser(sub, name: str) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler, e.g. tcp://HOST:8786 (with --executor "
                    "dask; without it a LocalCluster of --jobs workers is started)")
-    p.add_argument("--resume", action="store_true", help="skip jobs whose record exists in DIR")
+    p.add_argument("--resume", action="store_true", help="skip the jobs DIR holds a finished "
+                   "record of (ok or skipped); failed jobs run again")
     p.add_argument("--timeout", default="900", metavar="S",
                    help="seconds a job's method may take, finite and above 0 (default "
                    "900; loading, warm-up and evaluation have 30 min each of their own)")

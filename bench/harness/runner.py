@@ -17,6 +17,7 @@ for ``--resume``, which skips jobs whose record exists (in :mod:`bench.commands.
 
 from __future__ import annotations
 
+import json
 from collections import deque
 from collections.abc import Callable
 from multiprocessing.connection import wait
@@ -44,9 +45,19 @@ EXECUTORS = ("local", "dask")
 
 
 def remaining(jobs: list[Job], run_dir: Path) -> list[Job]:
-    """The jobs without a record in ``run_dir`` (what ``--resume`` runs): a record is
-    written only for a finished job, whichever executor ran it."""
-    return [job for job in jobs if not (Path(run_dir) / "records" / f"{job.key}.json").exists()]
+    """The jobs ``--resume`` runs: those without a finished record in ``run_dir`` (a
+    record is written only when a job ends, whichever executor ran it), and those whose
+    record says it failed or cannot be read, so a job lost to a killed worker, a timeout
+    or a crash gets another go; ok and skipped jobs are kept as they are."""
+    def finished(job: Job) -> bool:
+        path = Path(run_dir) / "records" / f"{job.key}.json"
+        try:
+            return json.loads(path.read_text(encoding="utf-8")).get("status") in ("ok",
+                                                                                 "skipped")
+        except (OSError, ValueError, AttributeError):
+            return False
+
+    return [job for job in jobs if not finished(job)]
 
 
 def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 900.0,
