@@ -53,9 +53,9 @@ def test_models_with_the_same_file_stem_are_two_jobs(planned, tmp_path):
     assert len(planned("--models", "A/mesh.obj,./A/mesh.obj,A/../A/mesh.obj",
                        "--methods", "qslim")) == 1
 
-    # --resume skips only the job whose record exists
+    # --resume skips only the job whose (finished) record exists
     (tmp_path / "out" / "records").mkdir(parents=True)
-    (tmp_path / "out" / "records" / f"{jobs[1].key}.json").write_text("{}")
+    (tmp_path / "out" / "records" / f"{jobs[1].key}.json").write_text('{"status": "ok"}')
     resumed = planned("--models", "A/mesh.obj,B/mesh.obj", "--methods", "qslim", "--resume")
     assert [j.model for j in resumed] == ["A/mesh.obj"]
 
