@@ -178,3 +178,34 @@ def test_a_big_run_has_a_page_per_model(run, tmp_path):
         shown[page.name] = {f.split("__")[0] for f in folders}
     assert all(len(models) == 1 for models in shown.values()), shown
     assert len(set.union(*shown.values())) == 3
+
+
+def test_a_comparison_grid_puts_the_methods_side_by_side(tmp_path):
+    """Two methods at one budget: one grid, a row per sheet view, the original then a
+    column per method, each cell's render and difference image and its d_RMS, the best
+    of each row marked, and the toggle's script; every image loads from disk."""
+    save_mesh(icosphere(2, name="ico"), tmp_path / "ico.obj")
+    proc = _bench("run", "--models", "ico.obj", "--methods", "qslim,fast-simplification",
+                  "--faces", "100", "--jobs", "1", "--out", "out", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    page = tmp_path / "out" / "index.html"
+    text = _dump(page, tmp_path / "profile")
+    dom = _Dom(text)
+    grids = [t for t in dom.all("table") if t.get("class") == "grid"]
+    assert len(grids) == 1
+    grid = text[text.index('class="grid"'):]
+    grid = grid[:grid.index("</table>")]
+    head = grid[grid.index("<thead>"):grid.index("</thead>")]
+    assert [h for h in ("original", "qslim", "fast-simplification") if h in head] == [
+        "original", "qslim", "fast-simplification"]
+    rows = grid.split("<tr>")[2:]  # after the header row
+    assert len(rows) == 4  # the sheet views
+    for row in rows:
+        assert row.count('class="best"') >= 1 and row.count("d_RMS ") == 2
+        assert row.count('class="view"') == 2 and row.count('class="diff"') == 2
+    assert any("show-diff" in s for s in dom.scripts)
+    assert [a for a in dom.all("input") if a.get("class") == "diff-toggle"]
+    assert _broken(tmp_path / "out", page, dom) == []
+    shot = tmp_path / "grid.png"
+    _chromium(tmp_path / "profile", "--window-size=1400,2400", f"--screenshot={shot}",
+              page.as_uri())

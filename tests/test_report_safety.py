@@ -19,6 +19,7 @@ import pytest
 
 from bench.errors import InputError
 from bench.harness.report import SCRIPT as PAGE_SCRIPT
+from bench.harness.report_grid import GRID_SCRIPT
 from bench.harness.report import write_report
 from bench.harness.results import load_records, write_record, write_table
 from conftest import made_up_record as record
@@ -55,10 +56,12 @@ def secret(tmp_path) -> Path:
 
 
 def without_own_script(page: str) -> str:
-    """``page`` without the report's own script, which it must hold exactly once: what is
-    left may hold no script at all."""
-    assert page.count(PAGE_SCRIPT) == 1
-    return page.replace(PAGE_SCRIPT, "")
+    """``page`` without the report's own scripts (the table's and the grids' toggle),
+    which it must hold exactly once each: what is left may hold no script at all."""
+    for own in (PAGE_SCRIPT, GRID_SCRIPT):
+        assert page.count(own) == 1
+        page = page.replace(own, "")
+    return page
 
 
 def _warnings(proc) -> list[str]:

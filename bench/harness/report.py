@@ -3,7 +3,8 @@ jobs one page per model (``DIR/model-<slug>.html``) linked from it.
 
 Sections follow Lindstrom & Turk 2000: a summary table (sortable and filterable,
 :mod:`bench.harness.report_table`), per model the d_RMS and Hausdorff curves over face
-count (Figures 5 and 6), silhouette histograms (Figure 7), image sheets with difference
+count (Figures 5 and 6), silhouette histograms (Figure 7), comparison grids of the
+methods side by side (:mod:`bench.harness.report_grid`), image sheets with difference
 images (Plate 13), a timing table (Table 1), and the failures with their errors.
 
 Images are files of the run folder linked by relative URLs (thumbnails linking to the
@@ -33,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import RecordWarning
+from bench.harness.report_grid import GRID_SCRIPT, comparison_grids
 from bench.harness.report_images import Inline, RunFiles, Shown, difference_png, run_png
 from bench.harness.report_table import SCRIPT, summary_html
 from bench.harness.report_table import cell as _cell
@@ -64,6 +66,9 @@ td.reason{max-width:30em;overflow:hidden;text-overflow:ellipsis}
 .artifact img{max-width:512px;image-rendering:pixelated}.artifact{margin:0 0 1.5em}
 pre{background:#f7f7f7;padding:.5em;white-space:pre-wrap;font-size:.8em}
 .note{color:#555;font-size:.9em}.warnings{background:#fff4d6;padding:.3em 1em}
+.grid img{width:128px;height:128px}.grid td{text-align:center;font-size:.8em}
+.grid .diff{display:none}.grid.show-diff .diff{display:inline}
+.grid.show-diff .view{display:none}
 """
 
 #: Summary-table columns left out when no record of the run defines them.
@@ -118,7 +123,7 @@ def html_page(title: str, parts: list[str]) -> str:
     """A whole HTML page: ``title`` and ``parts`` are HTML already."""
     head = (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title>"
             f"<style>{_CSS}</style></head><body>")
-    return "\n".join([head, *parts, SCRIPT, "</body></html>"])
+    return "\n".join([head, *parts, SCRIPT, GRID_SCRIPT, "</body></html>"])
 
 
 def _model_page(run_dir: Path, model: str, section: list[str], records: list[dict]) -> str:
@@ -145,12 +150,15 @@ def _model_list(models: list[str], links: dict[str, str], table) -> str:
 
 def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
                    refused: list[str], slug: str) -> list[str]:
-    """A model's heading, plots, exterior table, silhouette histograms and sheets."""
+    """A model's heading, plots, exterior table, silhouette histograms, comparison grids
+    and sheets."""
     own = [r for r in records if r["job"]["model"] == model]
     ok = table[(table.model == model) & (table.status == "ok")]
+    images = {id(r): sheet_images(run_dir, r, refused, out)  # by record: a key may be
+              for r in own if r["status"] == "ok"}            # missing in an older run
     return [f"<h2 id='m-{slug}'>{_esc(model)}</h2>", _plots(ok, out, slug),
             _exterior_table(ok), _silhouette_plot(own, out, slug),
-            _sheets(run_dir, own, refused, out)]
+            comparison_grids(own, images, slug), _sheets(run_dir, own, refused, out, images)]
 
 
 def _slugs(models: list[str]) -> dict[str, str]:
@@ -341,7 +349,8 @@ def _silhouette_plot(records: list[dict], out, slug: str) -> str:
     return f"<div class='plots'>{_img(src, 'silhouette histograms', out)}</div>"
 
 
-def _sheets(run_dir: Path, records: list[dict], refused: list[str], out) -> str:
+def _sheets(run_dir: Path, records: list[dict], refused: list[str], out,
+            images: dict | None = None) -> str:
     """The image sheets of ``records``' ok jobs and their artifacts; images that cannot
     be shown safely are left out with a reason in ``refused``."""
     several = len(_shadings(records)) > 1
@@ -354,7 +363,7 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out) -> str:
         evaluated = f", evaluated {_esc(shading)}" if several else ""
         parts.append(f"<h3>{_esc(job['label'])} at {job['target_faces']} faces{evaluated}: "
                      f"d_RMS {_fixed(r['metrics'].get('d_rms'))}</h3><div class='sheet'>"
-                     f"{''.join(_sheet_figures(run_dir, r, refused, out))}</div>")
+                     f"{''.join(_sheet_figures(run_dir, r, refused, out, images))}</div>")
         for name in r.get("artifacts") or []:  # images the method asked to show
             png = run_png(run_dir, name, refused,
                           what=f"{job['label']} / {job['target_faces']} artifact")
@@ -365,25 +374,41 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out) -> str:
     return "".join(parts)
 
 
-def _sheet_figures(run_dir: Path, record: dict, refused: list[str], out) -> list[str]:
-    """A job's sheet: the original's views, the result's and their differences, one
-    grid row each."""
+def sheet_images(run_dir: Path, record: dict, refused: list[str], out) -> list[dict]:
+    """A job's sheet views as shown (``original``, ``result``, ``difference``: a
+    :class:`Shown` or None each) with the view's ``d_rms`` (None when the record has
+    none), in :data:`~bench.harness.jobs.SHEET_VIEWS` order."""
     from bench.harness.jobs import SHEET_VIEWS
 
     key, original = _image_folders(run_dir, record)
     d_views = (record.get("per_view") or {}).get("d_rms") or []
-    rows = {"original": [], "result": [], "difference": []}
+    views = []
     for v in SHEET_VIEWS:
         o = run_png(run_dir, f"{original}/view{v:02d}.png", refused) if original else None
         s = run_png(run_dir, f"images/{key}/view{v:02d}.png", refused)
         diff = difference_png(o, s)
-        rows["original"].append((f"original, view {v}", out.view(o) if o else None))
-        rows["result"].append((f"{record['metrics'].get('faces')} faces",
-                               out.view(s) if s else None))
-        rows["difference"].append((f"|ΔY|×4, d_RMS {_fixed(d_views[v], 1)}"
-                                   if v < len(d_views) else "|ΔY|×4",
-                                   out.difference(diff, s) if diff else None))
-    return [_figure(shown, caption) for row in rows.values() for caption, shown in row if shown]
+        d = d_views[v] if v < len(d_views) and isinstance(d_views[v], numbers.Real) else None
+        views.append({"original": out.view(o) if o else None,
+                      "result": out.view(s) if s else None,
+                      "difference": out.difference(diff, s) if diff else None,
+                      "d_rms": None if d is None else float(d)})
+    return views
+
+
+def _sheet_figures(run_dir: Path, record: dict, refused: list[str], out,
+                   images: dict | None = None) -> list[str]:
+    """A job's sheet: the original's views, the result's and their differences, one
+    grid row each (the images of ``images`` when it has the job's)."""
+    from bench.harness.jobs import SHEET_VIEWS
+
+    views = (images or {}).get(id(record)) or \
+        sheet_images(run_dir, record, refused, out)
+    faces = f"{record['metrics'].get('faces')} faces"
+    rows = [[(f"original, view {v}", c["original"]) for v, c in zip(SHEET_VIEWS, views)],
+            [(faces, c["result"]) for c in views],
+            [(f"|ΔY|×4, d_RMS {_fixed(c['d_rms'], 1)}" if c["d_rms"] is not None
+              else "|ΔY|×4", c["difference"]) for c in views]]
+    return [_figure(shown, caption) for row in rows for caption, shown in row if shown]
 
 
 def _image_folders(run_dir: Path, record: dict) -> tuple[str, str | None]:

@@ -1,0 +1,75 @@
+"""Comparison grids of the report: per model, budget and evaluation shading, one table
+with a row per sheet view and a column per method (the original first), each cell the
+method's rendered view with its per-view d_RMS, the best of each row marked, and a
+toggle that shows the |ΔY| difference images instead.
+
+The images are the sheets' own (:func:`bench.harness.report.sheet_images`), so a grid
+costs no rendering and no image file of its own.
+"""
+
+from __future__ import annotations
+
+import math
+
+from bench.harness.report_table import esc
+from bench.harness.results import shading_label
+
+__all__ = ["GRID_SCRIPT", "comparison_grids"]
+
+#: The toggle: a checkbox above each grid swaps the cells' images for the differences.
+GRID_SCRIPT = """<script>
+document.querySelectorAll('input.diff-toggle').forEach(function (box) {
+  box.addEventListener('change', function () {
+    document.getElementById(box.dataset.grid).classList.toggle('show-diff', box.checked);
+  });
+});
+</script>"""
+
+
+def _img(shown, alt: str, cls: str) -> str:
+    if shown is None:
+        return ""
+    img = f"<img class='{cls}' src='{shown.src}' alt='{esc(alt)}' loading='lazy'>"
+    return f"<a href='{shown.href}'>{img}</a>" if shown.href else img
+
+
+def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
+    """The grids of one model's ok ``records``; ``images`` maps ``id(record)`` to its
+    :func:`~bench.harness.report.sheet_images` (views in sheet order)."""
+    from bench.harness.jobs import SHEET_VIEWS
+
+    groups: dict[tuple, list[dict]] = {}
+    for r in records:
+        if r["status"] == "ok" and id(r) in images:
+            groups.setdefault((r["job"]["target_faces"], shading_label(r["job"]["protocol"])),
+                              []).append(r)
+    parts = []
+    for n, ((target, shading), group) in enumerate(sorted(groups.items())):
+        if len(group) < 2:
+            continue  # one method: its sheet says it all
+        grid_id = f"grid-{slug}-{n}"
+        head = "<th>view</th><th>original</th>" + "".join(
+            f"<th>{esc(r['job']['label'])}</th>" for r in group)
+        rows = []
+        for i, view in enumerate(SHEET_VIEWS):
+            cells = [images[id(r)][i] for r in group]
+            values = [c["d_rms"] for c in cells]
+            finite = [v for v in values if v is not None and math.isfinite(v)]
+            best = min(finite) if finite else None
+            original = next((c["original"] for c in cells if c["original"]), None)
+            row = [f"<th>{view}</th>", f"<td>{_img(original, f'original, view {view}', 'orig')}"
+                   "</td>"]
+            for r, c, v in zip(group, cells, values):
+                mark = " class='best'" if v is not None and v == best else ""
+                label = r["job"]["label"]
+                row.append(f"<td{mark}>{_img(c['result'], f'{label}, view {view}', 'view')}"
+                           f"{_img(c['difference'], f'{label}, |ΔY| view {view}', 'diff')}"
+                           f"<br>{'' if v is None else f'd_RMS {v:.2f}'}</td>")
+            rows.append("<tr>" + "".join(row) + "</tr>")
+        parts.append(
+            f"<h3>Comparison at {target} faces, evaluated {esc(shading)}</h3>"
+            f"<label><input type='checkbox' class='diff-toggle' data-grid='{grid_id}'> "
+            "show |ΔY|×4 instead of the renders</label>"
+            f"<div class='scroll'><table class='grid' id='{grid_id}'><thead><tr>{head}</tr>"
+            f"</thead><tbody>{''.join(rows)}</tbody></table></div>")
+    return "".join(parts)
