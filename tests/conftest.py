@@ -92,3 +92,16 @@ def made_up_record(label: str = "q", status: str = "ok", model: str = "m", **cha
          "artifacts": [], "environment": {}}
     r.update(changes)
     return r
+
+
+def without_own_scripts(page: str) -> str:
+    """A report ``page`` without the report's own scripts (the summary table's and the
+    comparison grids' toggle), which it must hold exactly once each: what is left may
+    hold no script at all."""
+    from bench.harness.report import SCRIPT
+    from bench.harness.report_grid import GRID_SCRIPT
+
+    for own in (SCRIPT, GRID_SCRIPT):
+        assert page.count(own) == 1
+        page = page.replace(own, "")
+    return page

@@ -18,11 +18,10 @@ from pathlib import Path
 import pytest
 
 from bench.errors import InputError
-from bench.harness.report import SCRIPT as PAGE_SCRIPT
-from bench.harness.report_grid import GRID_SCRIPT
 from bench.harness.report import write_report
 from bench.harness.results import load_records, write_record, write_table
 from conftest import made_up_record as record
+from conftest import without_own_scripts
 from metrics.protocol import Protocol
 
 SCRIPT = "<script>alert(1)</script>"
@@ -55,15 +54,6 @@ def secret(tmp_path) -> Path:
     return path
 
 
-def without_own_script(page: str) -> str:
-    """``page`` without the report's own scripts (the table's and the grids' toggle),
-    which it must hold exactly once each: what is left may hold no script at all."""
-    for own in (PAGE_SCRIPT, GRID_SCRIPT):
-        assert page.count(own) == 1
-        page = page.replace(own, "")
-    return page
-
-
 def _warnings(proc) -> list[str]:
     assert "Traceback" not in proc.stderr
     return [line for line in proc.stderr.splitlines() if line.startswith("bench: warning:")]
@@ -77,7 +67,7 @@ def test_record_strings_are_escaped(tmp_path):
                                 "failed": failed, "partial": partial})
     proc = bench("report", run)
     assert proc.returncode == 0, proc.stderr
-    page = without_own_script((run / "index.html").read_text())
+    page = without_own_scripts((run / "index.html").read_text())
     assert "<script" not in page.lower() and "<img src=x" not in page.lower()
     assert "<b>" not in page
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in page  # shown, as text
