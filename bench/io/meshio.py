@@ -1146,6 +1146,11 @@ def _ply_binary_as_ascii(data: bytes) -> bytes | None:
         return None
     vertices = np.frombuffer(body, vtype, nv)
     at, faces = nv * vtype.itemsize, []
+    triangles = np.dtype([("n", ctype), ("i", itype, 3)])
+    if len(body) - at == nf * triangles.itemsize:  # a triangle mesh, read in one go
+        counts = np.frombuffer(body, triangles, nf, at)["n"]
+        if (counts == 3).all():
+            return None
     for _ in range(nf):
         if at + ctype.itemsize > len(body):
             return None
