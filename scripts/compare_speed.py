@@ -1,0 +1,58 @@
+"""Method time of one job in two checkouts, alternating fresh processes:
+
+    .venv/bin/python scripts/compare_speed.py DIR_A DIR_B ROUNDS [FACES] [METHOD]
+
+Each round runs, in a fresh process per checkout (its code first on the import path,
+numba's caches warm from a first run), METHOD (default image-driven) once on a
+200-face icosphere as a warm-up and then on the bunny to FACES faces (default 1,332),
+and prints the method's ``wall_seconds``; at the end the medians and B/A. A and B take
+turns, so drift of a shared machine hits both alike. Run nothing else meanwhile.
+"""
+
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+CLASSES = {"image-driven": ("methods.image_driven", "ImageDriven"),
+           "memoryless": ("methods.memoryless", "Memoryless"),
+           "entropy-twin": ("methods.entropy_twin", "EntropyTwin"),
+           "quadric": ("methods.quadric", "Quadric")}
+
+CODE = """
+import sys
+sys.path.insert(0, sys.argv[1])
+sys.path.insert(1, sys.argv[2])
+import bench
+from bench.method import run_method
+from bench.models import BUNNY
+from conftest import icosphere
+from {module} import {cls}
+run_method({cls}(), icosphere(3), 200)
+print(run_method({cls}(), BUNNY.load(), {faces}).stats["wall_seconds"])
+"""
+
+
+def main() -> None:
+    a, b, rounds = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    faces = int(sys.argv[4]) if len(sys.argv) > 4 else 1332
+    module, cls = CLASSES[sys.argv[5] if len(sys.argv) > 5 else "image-driven"]
+    code = CODE.format(module=module, cls=cls, faces=faces)
+    tests = str(Path(__file__).resolve().parent.parent / "tests")
+    times = {a: [], b: []}
+    for _ in range(rounds):
+        for tree in (a, b):
+            out = subprocess.run([sys.executable, "-c", code, tree, tests], cwd=tree,
+                                 capture_output=True, text=True,
+                                 env={"PYTHONPATH": tree, "PATH": "/usr/bin:/bin",
+                                      "HOME": str(Path.home())})
+            if out.returncode:
+                sys.exit(out.stderr[-2000:])
+            times[tree].append(float(out.stdout.split()[-1]))
+            print(f"{tree}: {times[tree][-1]:.3f} s", flush=True)
+    ma, mb = statistics.median(times[a]), statistics.median(times[b])
+    print(f"median A {ma:.3f} s, B {mb:.3f} s, B/A {mb / ma:.3f}")
+
+
+if __name__ == "__main__":
+    main()
