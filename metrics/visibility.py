@@ -40,12 +40,12 @@ def _rasterize_ids(sx, sy, sz, faces, size, ids, depth):
         x1, y1, z1 = sx[b], sy[b], sz[b]
         x2, y2, z2 = sx[c], sy[c], sz[c]
         area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        if area == 0.0 or not (math.isfinite(area)):
+        if area == 0.0 or not math.isfinite(area):
             continue
-        lo_x = max(0, int(math.floor(min(x0, x1, x2) - 0.5)))
-        hi_x = min(size - 1, int(math.ceil(max(x0, x1, x2) - 0.5)))
-        lo_y = max(0, int(math.floor(min(y0, y1, y2) - 0.5)))
-        hi_y = min(size - 1, int(math.ceil(max(y0, y1, y2) - 0.5)))
+        lo_x = max(0, math.floor(min(x0, x1, x2) - 0.5))
+        hi_x = min(size - 1, math.ceil(max(x0, x1, x2) - 0.5))
+        lo_y = max(0, math.floor(min(y0, y1, y2) - 0.5))
+        hi_y = min(size - 1, math.ceil(max(y0, y1, y2) - 0.5))
         for py in range(lo_y, hi_y + 1):
             cy = py + 0.5
             for px in range(lo_x, hi_x + 1):
@@ -100,16 +100,30 @@ def never_seen_share(original: Mesh, simplified: Mesh, ctx=None) -> float:
     that no protocol view sees; NaN when the original does not classify its faces (the
     metric is computed for those models only, as ``exterior_share`` is) or the result
     has no faces."""
-    from scipy.spatial import cKDTree
-
     from metrics.interior import exterior_sphere
 
     if exterior_sphere(original) is None or simplified.n_faces == 0:
         return math.nan
-    seen = seen_faces(original)
-    tree = cKDTree(original.positions[original.faces].mean(axis=1))
+    seen, tree = _original_visibility(original)
     _, nearest = tree.query(simplified.positions[simplified.faces].mean(axis=1))
     return float((~seen[nearest]).mean())
+
+
+_VISIBILITY: dict = {}  # content hash -> (seen faces, centroid tree), for this process
+
+
+def _original_visibility(original: Mesh):
+    """``original``'s seen faces and a tree of its face centroids, made once per model
+    and process (a job process evaluates the same original for every job of a model)."""
+    from scipy.spatial import cKDTree
+
+    key = original.content_hash
+    if key not in _VISIBILITY:
+        if len(_VISIBILITY) >= 4:
+            _VISIBILITY.clear()
+        _VISIBILITY[key] = (seen_faces(original),
+                            cKDTree(original.positions[original.faces].mean(axis=1)))
+    return _VISIBILITY[key]
 
 
 NEVER_SEEN_SHARE = Metric(

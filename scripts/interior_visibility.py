@@ -6,7 +6,6 @@ from). Usage: .venv/bin/python scripts/interior_visibility.py [FACES]"""
 
 import sys
 
-import numpy as np
 from scipy.spatial import cKDTree
 
 import bench  # noqa: F401  (the BLAS kernel pin comes first)

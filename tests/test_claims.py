@@ -8,13 +8,13 @@ import csv
 import math
 
 import pytest
-from conftest import made_up_record
 
 from bench.cli import main
 from bench.harness.check import FAILING_MARKS, baseline_problem, compare, make_baseline
 from bench.harness.claims import Claim, evaluate_claim
 from bench.harness.results import write_record
 from bench.harness.suites import SUITES, Suite
+from conftest import made_up_record
 
 
 def rec(label, model="m", faces=100, d_rms=5.0, status="ok", shading="flat", specular=False,
@@ -168,7 +168,8 @@ def test_reproduce_decides_claims_from_the_records_it_finds(tmp_path, capsys):
                  "lt2000-plate13,lt2000-plate13-memoryless,lt2000-fig1"])
     assert code == 0
     out = capsys.readouterr().out
-    rows = {r["claim"]: r for r in csv.DictReader(open(tmp_path / "claims.csv"))}
+    with open(tmp_path / "claims.csv", newline="") as f:
+        rows = {r["claim"]: r for r in csv.DictReader(f)}
     assert rows["lt2000-plate13"]["verdict"] == "holds, weaker"  # 0.75 > 5.99 / 8.76
     assert float(rows["lt2000-plate13"]["worst"]) == 0.75
     assert rows["lt2000-plate13-memoryless"]["verdict"] == "holds"  # 0.75 < 5.99 / 7.29

@@ -4,7 +4,6 @@ against an independent oracle (a ray cast per pixel with trimesh)."""
 import math
 
 import numpy as np
-import pytest
 import trimesh
 
 from bench.mesh import Mesh

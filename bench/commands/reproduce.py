@@ -5,9 +5,7 @@ every claim from the records, and write ``DIR/claims.csv`` and a Reproduction pa
 
 from __future__ import annotations
 
-import argparse
 import math
-import os
 import sys
 import time
 from pathlib import Path
@@ -55,6 +53,7 @@ def selected(text: str | None) -> list:
 
 
 def run(args) -> int:
+    from bench.cli import build_parser
     from bench.commands import one_line
     from bench.commands import run as run_cmd
     from bench.harness.results import load_records
@@ -67,11 +66,9 @@ def run(args) -> int:
     if not args.no_run:
         for i, suite in enumerate(suites, 1):
             print(f"bench reproduce: suite {i} of {len(suites)}: {suite}", file=sys.stderr)
-            status |= run_cmd.run(argparse.Namespace(
-                suite=suite, out=str(out / suite), resume=True,
-                jobs=args.jobs or str(os.cpu_count() or 1), timeout=args.timeout,
-                models=None, methods=None, faces=None, ratios=None, shading=None, specular=False, executor="local",
-                scheduler=None, no_report=False, single_file=False))
+            argv = ["run", "--suite", suite, "--out", str(out / suite), "--resume",
+                    "--timeout", args.timeout] + (["--jobs", args.jobs] if args.jobs else [])
+            status |= run_cmd.run(build_parser().parse_args(argv))
     seconds = None if args.no_run else time.perf_counter() - start
     records = {s: load_records(out / s) if (out / s / "records").is_dir() else []
                for s in suites}

@@ -108,7 +108,9 @@ class ClaimResult:
         """The evidence in one line: the value (or its range) and how many rows pass."""
         if not self.rows:
             return "no records"
-        values = [r["value"] for r in self.rows]
+        values = [r["value"] for r in self.rows if not math.isnan(r["value"])]
+        if not values:
+            return f"undefined (0 of {len(self.rows)} pass)"
         lo, hi = min(values), max(values)
         shown = f"{lo:.4g}" if lo == hi else f"{lo:.4g}-{hi:.4g}"
         return f"{shown} ({self.passed} of {len(self.rows)} pass)"
@@ -165,20 +167,16 @@ def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
         if "method" not in got or (claim.against and "against" not in got):
             continue
         mine = _value(got["method"], claim.metric)
-        row = {"model": model, "target_faces": target, "shading": shading,
-               "faces": _value(got["method"], "faces"), "method_value": mine,
-               "against_value": math.nan, "method_key": got["method"]["job"].get("key"),
-               "against_key": got["against"]["job"].get("key") if claim.against else None}
-        if claim.against:
-            theirs = _value(got["against"], claim.metric)
-            row["against_value"] = theirs
-            row["value"] = mine / theirs if theirs else math.nan  # nan stays nan
-        else:
-            row["value"] = mine
-        if math.isnan(row["method_value"]):
+        if math.isnan(mine):
             continue  # the metric is undefined for this model (e.g. exterior_share)
-        row["passes"] = claim.passes(row["value"])
-        rows.append(row)
+        other = got.get("against")
+        theirs = _value(other, claim.metric) if other else math.nan
+        value = (mine / theirs if theirs else math.nan) if other else mine  # nan stays
+        rows.append({"model": model, "target_faces": target, "shading": shading,
+                     "faces": _value(got["method"], "faces"), "method_value": mine,
+                     "against_value": theirs, "value": value, "passes": claim.passes(value),
+                     "method_key": got["method"]["job"].get("key"),
+                     "against_key": other["job"].get("key") if other else None})
     return rows
 
 

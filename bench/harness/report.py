@@ -41,7 +41,7 @@ from bench.harness.report_table import cell as _cell
 from bench.harness.report_table import esc as _esc
 from bench.harness.results import load_records, records_table, shading_label, write_atomic
 
-__all__ = ["PAGE_LIMIT", "SCRIPT", "html_page", "pyplot", "write_report"]
+__all__ = ["PAGE_LIMIT", "SCRIPT", "figure", "html_page", "pyplot", "write_report"]
 
 #: Above this many jobs the report is one page per model, linked from index.html, so no
 #: page holds more than one model's images.
@@ -114,8 +114,8 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
         body = [*summary, *(part for m in models for part in sections[m]),
                 "<h2>Timing</h2>", _timing(records), "<h2>Failures</h2>", _failures(records)]
     page = html_page(f"bench report: {_esc(run_dir.name)}",
-                 [f"<h1>Simplification benchmark: {_esc(run_dir.name)}</h1>",
-                  _warnings_html(notes + refused), _protocol_note(records), *body])
+                     [f"<h1>Simplification benchmark: {_esc(run_dir.name)}</h1>",
+                      _warnings_html(notes + refused), _protocol_note(records), *body])
     return write_atomic(run_dir / "index.html", page)
 
 
@@ -130,10 +130,10 @@ def _model_page(run_dir: Path, model: str, section: list[str], records: list[dic
     """The page of one model in a split report: its section and its timing table."""
     own = [r for r in records if r["job"]["model"] == model]
     return html_page(f"bench report: {_esc(run_dir.name)} / {_esc(model)}",
-                 [f"<p><a href='index.html'>← summary of {_esc(run_dir.name)}</a></p>",
-                  f"<h1>Simplification benchmark: {_esc(run_dir.name)}, {_esc(model)}</h1>",
-                  _protocol_note(own), *section,
-                  "<h2>Timing</h2>", _timing(own)])
+                     [f"<p><a href='index.html'>← summary of {_esc(run_dir.name)}</a></p>",
+                      f"<h1>Simplification benchmark: {_esc(run_dir.name)}, {_esc(model)}</h1>",
+                      _protocol_note(own), *section,
+                      "<h2>Timing</h2>", _timing(own)])
 
 
 def _model_list(models: list[str], links: dict[str, str], table) -> str:
@@ -284,7 +284,7 @@ def _img(src: str, alt: str, out) -> str:
 _LAZY = " loading='lazy'"
 
 
-def _figure(shown: Shown, caption: str, cls: str = "") -> str:
+def figure(shown: Shown, caption: str, cls: str = "") -> str:
     """An image with its caption; a thumbnail links to its full-size image."""
     if shown.href is None:
         img = f"<img src='{shown.src}' alt='{_esc(caption)}'>"
@@ -349,10 +349,10 @@ def _silhouette_plot(records: list[dict], out, slug: str) -> str:
     return f"<div class='plots'>{_img(src, 'silhouette histograms', out)}</div>"
 
 
-def _sheets(run_dir: Path, records: list[dict], refused: list[str], out,
-            images: dict | None = None) -> str:
-    """The image sheets of ``records``' ok jobs and their artifacts; images that cannot
-    be shown safely are left out with a reason in ``refused``."""
+def _sheets(run_dir: Path, records: list[dict], refused: list[str], out, images: dict) -> str:
+    """The image sheets of ``records``' ok jobs (their views in ``images``, by
+    ``id(record)``: :func:`sheet_images`) and their artifacts; images that cannot be
+    shown safely are left out with a reason in ``refused``."""
     several = len(_shadings(records)) > 1
     parts = []
     for r in records:
@@ -363,13 +363,13 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out,
         evaluated = f", evaluated {_esc(shading)}" if several else ""
         parts.append(f"<h3>{_esc(job['label'])} at {job['target_faces']} faces{evaluated}: "
                      f"d_RMS {_fixed(r['metrics'].get('d_rms'))}</h3><div class='sheet'>"
-                     f"{''.join(_sheet_figures(run_dir, r, refused, out, images))}</div>")
+                     f"{''.join(_sheet_figures(r, images[id(r)]))}</div>")
         for name in r.get("artifacts") or []:  # images the method asked to show
             png = run_png(run_dir, name, refused,
                           what=f"{job['label']} / {job['target_faces']} artifact")
             shown = out.view(png) if png else None
             if shown:
-                parts.append(_figure(shown, Path(name).stem.removeprefix("artifact-"),
+                parts.append(figure(shown, Path(name).stem.removeprefix("artifact-"),
                                      "artifact"))
     return "".join(parts)
 
@@ -395,20 +395,17 @@ def sheet_images(run_dir: Path, record: dict, refused: list[str], out) -> list[d
     return views
 
 
-def _sheet_figures(run_dir: Path, record: dict, refused: list[str], out,
-                   images: dict | None = None) -> list[str]:
-    """A job's sheet: the original's views, the result's and their differences, one
-    grid row each (the images of ``images`` when it has the job's)."""
+def _sheet_figures(record: dict, views: list[dict]) -> list[str]:
+    """A job's sheet from its :func:`sheet_images`: the original's views, the result's
+    and their differences, one grid row each."""
     from bench.harness.jobs import SHEET_VIEWS
 
-    views = (images or {}).get(id(record)) or \
-        sheet_images(run_dir, record, refused, out)
     faces = f"{record['metrics'].get('faces')} faces"
     rows = [[(f"original, view {v}", c["original"]) for v, c in zip(SHEET_VIEWS, views)],
             [(faces, c["result"]) for c in views],
             [(f"|ΔY|×4, d_RMS {_fixed(c['d_rms'], 1)}" if c["d_rms"] is not None
               else "|ΔY|×4", c["difference"]) for c in views]]
-    return [_figure(shown, caption) for row in rows for caption, shown in row if shown]
+    return [figure(shown, caption) for row in rows for caption, shown in row if shown]
 
 
 def _image_folders(run_dir: Path, record: dict) -> tuple[str, str | None]:

@@ -16,7 +16,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from bench.harness.claims import ClaimResult
-from bench.harness.report import html_page, pyplot
+from bench.harness.report import figure, html_page, pyplot
 from bench.harness.report_images import RunFiles, run_png
 from bench.harness.report_table import esc
 from bench.harness.results import write_atomic
@@ -132,10 +132,7 @@ def _views(out_dir: Path, res: ClaimResult, files: RunFiles) -> str:
             continue
         png = run_png(out_dir, f"{c.suite}/images/{key}/view00.png", files.refused)
         shown = files.view(png) if png else None
-        if shown is None:
-            continue
-        figures.append(f"<figure><a href='{shown.href or shown.src}'><img src='{shown.src}' "
-                       f"alt='{esc(label)}' loading='lazy'></a><figcaption>{esc(label)}, "
-                       f"{esc(worst['model'])} at {worst['target_faces']} faces, view 0"
-                       "</figcaption></figure>")
+        if shown is not None:
+            figures.append(figure(shown, f"{label}, {worst['model']} at "
+                                         f"{worst['target_faces']} faces, view 0"))
     return f"<div class='sheet'>{''.join(figures)}</div>" if figures else ""
