@@ -5,6 +5,7 @@ every claim from the records, and write ``DIR/claims.csv`` and a Reproduction pa
 
 from __future__ import annotations
 
+import argparse
 import math
 import sys
 import time
@@ -53,7 +54,6 @@ def selected(text: str | None) -> list:
 
 
 def run(args) -> int:
-    from bench.cli import build_parser
     from bench.commands import one_line
     from bench.commands import run as run_cmd
     from bench.harness.results import load_records
@@ -68,7 +68,7 @@ def run(args) -> int:
             print(f"bench reproduce: suite {i} of {len(suites)}: {suite}", file=sys.stderr)
             argv = ["run", "--suite", suite, "--out", str(out / suite), "--resume",
                     "--timeout", args.timeout] + (["--jobs", args.jobs] if args.jobs else [])
-            status |= run_cmd.run(build_parser().parse_args(argv))
+            status |= run_cmd.run(_run_parser().parse_args(argv))
     seconds = None if args.no_run else time.perf_counter() - start
     records = {s: load_records(out / s) if (out / s / "records").is_dir() else []
                for s in suites}
@@ -87,6 +87,15 @@ def run(args) -> int:
     print(f"bench: {len(results)} claims{took}; wrote {out / 'claims.csv'} and {page}",
           file=sys.stderr)
     return status
+
+
+def _run_parser() -> argparse.ArgumentParser:
+    """``bench run``'s own parser, so a suite run here has exactly its defaults."""
+    from bench.commands import run as run_cmd
+
+    parser = argparse.ArgumentParser(prog="bench")
+    run_cmd.add_parser(parser.add_subparsers(), "run")
+    return parser
 
 
 def _write_csv(out: Path, results: list) -> None:
