@@ -48,29 +48,48 @@ from bench.errors import InputError
 from bench.harness.jobs import canonical_label
 
 __all__ = ["BASELINE_SCHEMA", "FAILING_MARKS", "baseline_problem", "canonical_label",
-           "check_tolerance", "compare", "load_baseline", "make_baseline", "metric_directions"]
+           "check_tolerance", "compare", "load_baseline", "make_baseline", "metric_directions",
+           "metric_info", "record_key"]
 
 BASELINE_SCHEMA = 1
 FAILING_MARKS = ("worse", "not finite", "newly failing", "missing", "claim broken")
 
 
-def metric_directions() -> dict[str, bool]:
-    """Registered metric name -> higher_is_better, for metrics that have a direction."""
+def metric_info() -> dict[str, tuple[str, bool | None]]:
+    """Registered metric name -> (unit, higher_is_better); a plug-in that cannot be
+    loaded is left out (the report then shows its values unitless, and the gate does
+    not judge them)."""
     from bench.registry import registry
 
     out = {}
     for entry in registry("metric"):
-        if entry.available:
+        if not entry.available:
+            continue
+        try:
             metric = entry.load()
-            if metric.higher_is_better is not None:
-                out[entry.name] = metric.higher_is_better
+        except Exception:  # noqa: BLE001, S112 (a broken plug-in is left out)
+            continue
+        out[entry.name] = (str(metric.unit), metric.higher_is_better)
     return out
+
+
+def metric_directions() -> dict[str, bool]:
+    """Registered metric name -> higher_is_better, for metrics that have a direction."""
+    return {name: higher for name, (_, higher) in metric_info().items() if higher is not None}
 
 
 def _key(model: str, label: str, target: int, shading: str) -> str:
     """``model | method | target | shading``; the shading is the evaluation's, with
     ``-spec`` when specular was on (:func:`bench.harness.results.shading_label`)."""
     return f"{model} | {canonical_label(label)} | {target} | {shading}"
+
+
+def record_key(record: dict) -> str:
+    """The key a baseline gives ``record``'s job: ``model | method | target | shading``."""
+    from bench.harness.results import shading_label
+
+    job = record["job"]
+    return _key(job["model"], job["label"], job["target_faces"], shading_label(job["protocol"]))
 
 
 def _canonical_entries(entries: dict) -> dict:
@@ -92,19 +111,15 @@ def make_baseline(records: list[dict]) -> dict:
     neither a regression nor an improvement; a NaN or infinite value is kept, for
     :func:`compare` to mark ``not finite``.
     """
-    from bench.harness.results import shading_label
-
     directions = metric_directions()
     entries = {}
     for r in records:
-        job = r["job"]
-        key = _key(job["model"], job["label"], job["target_faces"],
-                   shading_label(job["protocol"]))
+        key = record_key(r)
         metrics = r.get("metrics") or {}
         entries[key] = {
             "status": r["status"],
             "method_version": (r.get("method") or {}).get("version"),
-            "protocol_version": job["protocol"]["version"],
+            "protocol_version": r["job"]["protocol"]["version"],
             "metrics": {k: metrics[k] for k in directions if _number(metrics.get(k))},
         }
         errors = {k: v for k, v in (r.get("metric_errors") or {}).items() if k in directions}

@@ -62,7 +62,7 @@ td.reason{max-width:30em;overflow:hidden;text-overflow:ellipsis}
 .scroll{overflow-x:auto}
 .sheet figure{margin:0;text-align:center;font-size:.75em}
 .sheet img{width:256px;height:256px}
-.plots img{max-width:48%}
+.plots img{max-width:48%}.history img{max-width:100%}.history{margin:0 0 1.5em}
 .artifact img{max-width:512px;image-rendering:pixelated}.artifact{margin:0 0 1.5em}
 pre{background:#f7f7f7;padding:.5em;white-space:pre-wrap;font-size:.8em}
 .note{color:#555;font-size:.9em}.warnings{background:#fff4d6;padding:.3em 1em}

@@ -18,6 +18,8 @@ import html
 
 import numpy as np
 
+from bench.harness.check import metric_info
+
 __all__ = ["SCRIPT", "cell", "esc", "summary_html"]
 
 SCRIPT = """<script>/* bench report: sortable and filterable tables */
@@ -92,7 +94,7 @@ def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
     with the filter box and a note on how to read it."""
     reasons = [_reason(r) for r in records]
     columns = _columns(list(table.columns), any(reasons))
-    metrics = _metric_info()
+    metrics = metric_info()
     best = _best_cells(table, {c: up for c, (_, up) in metrics.items()
                                if c in table.columns and up is not None})
     rows = [_row(table.iloc[i], i, reasons[i], columns, best, links)
@@ -162,23 +164,6 @@ def _reason(record: dict) -> str:
 def _printable(text: str) -> str:
     """``text`` with control characters shown escaped (as ``bench.commands.one_line``)."""
     return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
-
-
-def _metric_info() -> dict[str, tuple[str, bool | None]]:
-    """Registered metric name -> (unit, higher_is_better); a plug-in that cannot be
-    loaded is left out (its column then shows no unit)."""
-    from bench.registry import registry
-
-    out = {}
-    for entry in registry("metric"):
-        if not entry.available:
-            continue
-        try:
-            metric = entry.load()
-        except Exception:  # noqa: BLE001, S112 (a broken plug-in: its values show, unitless)
-            continue
-        out[entry.name] = (str(metric.unit), metric.higher_is_better)
-    return out
 
 
 def _best_cells(table, directions: dict[str, bool]) -> set[tuple[int, str]]:

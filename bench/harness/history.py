@@ -1,0 +1,216 @@
+"""Quality over commits: each metric per (model, method, budget, shading) against the
+commit and date its run recorded, with the points where ``bench check`` would have
+failed marked — the regression graphs of asv, for a folder of CI artifacts.
+
+A run folder is one point. Its commit is the ``environment.git_commit`` most of its
+records carry (the suite's checkout when the run was made; "unknown" where git was not
+there) and its date the earliest record's ``created``; points are ordered by date, then
+by folder name. A point is checked as ``bench check`` would check that run against the
+run before it (or, given a baseline file, against that baseline, as CI does with a
+committed one): a metric marked ``worse``, ``not finite`` or ``newly failing`` there is
+drawn as a red cross, and each run's verdict is in the table of runs.
+
+Run folders may come from anywhere, so they are read as the report reads them
+(:func:`~bench.harness.results.load_records` with bad records left out and named) and
+every string is escaped where it is written.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bench.errors import InputError, RecordWarning
+from bench.harness.check import (
+    FAILING_MARKS,
+    canonical_label,
+    compare,
+    make_baseline,
+    metric_info,
+    record_key,
+)
+from bench.harness.results import shading_label
+from bench.harness.report import figure, html_page, pyplot
+from bench.harness.report_images import RunFiles, Shown
+from bench.harness.report_table import esc
+from bench.harness.results import load_records, write_atomic
+
+__all__ = ["Point", "find_runs", "history_table", "load_history",
+           "write_history"]
+
+@dataclass
+class Point:
+    """One run folder of the history."""
+
+    folder: Path
+    commit: str
+    date: str
+    entries: dict  # bench.harness.check.make_baseline's entries of the run
+    jobs: dict  # entry key -> (model, method label, target faces, shading)
+    verdict: str = "first run"  # the check against the previous run (or the baseline)
+    failing: dict = field(default_factory=dict)  # (job, metric) -> failing mark
+    skipped: list = field(default_factory=list)  # bad records left out, with why
+
+
+def find_runs(paths: list[Path]) -> list[Path]:
+    """The run folders named: each path is a run folder (it has ``records/``) or a
+    folder of run folders (one per commit, as CI artifacts arrive)."""
+    runs = []
+    for path in map(Path, paths):
+        if (path / "records").is_dir():
+            runs.append(path)
+            continue
+        inner = sorted(p for p in path.iterdir() if (p / "records").is_dir()) \
+            if path.is_dir() else []
+        if not inner:
+            raise InputError(f"{path}: no run folder (a folder with records/) in it or "
+                             "directly under it; give bench run --out folders")
+        runs.extend(inner)
+    return list(dict.fromkeys(runs))
+
+
+def load_history(paths: list[Path], tolerance: float = 0.02,
+                 baseline: dict | None = None) -> list[Point]:
+    """The points of the run folders under ``paths``, ordered, each checked against the
+    previous point or against ``baseline`` (a loaded baseline file) when given."""
+    points = []
+    for folder in find_runs(paths):
+        skipped = []
+        records = load_records(folder, skipped=skipped)
+        commits = Counter(_text(_dict(r.get("environment")).get("git_commit")) or "unknown"
+                          for r in records)
+        dates = [_text(r.get("created")) for r in records if _text(r.get("created"))]
+        points.append(Point(folder, commits.most_common(1)[0][0] if commits else "unknown",
+                            min(dates, default=""), make_baseline(records)["entries"],
+                            {record_key(r): _job(r) for r in records}, skipped=skipped))
+    points.sort(key=lambda p: (p.date, str(p.folder)))
+    for before, point in zip([None, *points], points):
+        reference = baseline if baseline is not None else \
+            None if before is None else {"entries": before.entries}
+        if reference is None or not point.entries:
+            continue
+        rows = compare(reference, {"entries": point.entries}, tolerance)
+        failing = [r for r in rows if r.mark in FAILING_MARKS]
+        point.failing = {(r.job, r.metric): r.mark for r in failing}
+        point.verdict = f"FAILED ({len(failing)})" if failing else "passed"
+    return points
+
+
+def history_table(points: list[Point]):
+    """A long pandas table: one row per (run, job, metric) with the run's commit and
+    date and the check's failing mark (empty when the point passed)."""
+    import pandas as pd
+
+    rows = []
+    for i, p in enumerate(points):
+        for job, entry in p.entries.items():
+            model, method, target, shading = p.jobs[job]
+            for metric, value in entry["metrics"].items():
+                rows.append({"run": i, "folder": p.folder.name, "commit": p.commit,
+                             "date": p.date, "model": model, "method": method,
+                             "target_faces": int(target), "shading": shading,
+                             "metric": metric, "value": value,
+                             "mark": p.failing.get((job, metric), "")})
+    columns = ["run", "folder", "commit", "date", "model", "method", "target_faces",
+               "shading", "metric", "value", "mark"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def write_history(points: list[Point], out: Path, metrics: list[str],
+                  reference: str = "the previous run") -> Path:
+    """``out/index.html`` (a table of the runs and a figure per model, budget and
+    shading with a panel per metric), ``out/history.csv`` and the figures' SVG files
+    under ``out/images/``; returns the page's path."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    table = history_table(points)
+    write_atomic(out / "history.csv", table.to_csv(index=False, float_format="%.9g"))
+    refused = []
+    files = RunFiles(out, refused)
+    info = metric_info()
+    shown = [m for m in metrics if m in set(table.metric)]
+    parts = [f"<h1>Quality over {len(points)} runs</h1>",
+             f"<p class='note'>Each point is a run folder, at the commit and date it "
+             f"recorded; a red cross is a value <code>bench check</code> would have failed "
+             f"against {esc(reference)}. Metrics: {esc(', '.join(shown) or 'none')}. The "
+             "data: <a href='history.csv'>history.csv</a>.</p>",
+             _runs_table(points)]
+    notes = [f"{p.folder.name}: {note}" for p in points for note in p.skipped]
+    if notes:
+        parts.append("<div class='warnings'><p>Left out:</p><ul>"
+                     + "".join(f"<li>{esc(n)}</li>" for n in notes) + "</ul></div>")
+    groups = table[table.metric.isin(shown)].groupby(["model", "target_faces", "shading"],
+                                                     sort=True)
+    model = None
+    for n, ((name, target, shading), group) in enumerate(groups):
+        if name != model:
+            model = name
+            parts.append(f"<h2>{esc(name)}</h2>")
+        caption = f"{name}, {target} faces, {shading} shading"
+        src = files.plot(_figure(group, points, shown, info), f"history-{n:04d}")
+        if src:
+            parts.append(figure(Shown(src), caption, "history"))
+    for note in refused + notes:
+        warnings.warn(note, RecordWarning, stacklevel=2)
+    return write_atomic(out / "index.html", html_page("bench history", parts))
+
+
+def _runs_table(points: list[Point]) -> str:
+    rows = []
+    for i, p in enumerate(points):
+        jobs = Counter(e["status"] for e in p.entries.values())
+        status = ", ".join(f"{n} {s}" for s, n in sorted(jobs.items()))
+        cls = " class='failed'" if p.verdict.startswith("FAILED") else ""
+        rows.append(f"<tr{cls}><td>{i}</td><td>{esc(p.commit[:12])}</td><td>{esc(p.date)}</td>"
+                    f"<td>{esc(p.folder.name)}</td><td>{esc(status)}</td>"
+                    f"<td>{esc(p.verdict)}</td></tr>")
+    return ("<table><thead><tr><th>#</th><th>commit</th><th>date</th><th>folder</th>"
+            "<th>jobs</th><th>bench check</th></tr></thead><tbody>"
+            + "".join(rows) + "</tbody></table>")
+
+
+def _figure(group, points: list[Point], metrics: list[str], info: dict):
+    """A row of panels, one per metric: a line per method over the runs, failing points
+    crossed out in red."""
+    plt = pyplot()
+    present = [m for m in metrics if m in set(group.metric)]
+    fig, axes = plt.subplots(1, len(present), figsize=(3.2 * len(present), 2.8),
+                             squeeze=False)
+    every = max(1, len(points) // 12)  # at most about a dozen labelled runs
+    ticks = list(range(0, len(points), every))
+    labels = [f"{points[i].commit[:7]}\n{points[i].date[:10]}" for i in ticks]
+    for ax, metric in zip(axes[0], present):
+        rows = group[group.metric == metric]
+        for method, line in rows.groupby("method", sort=True):
+            line = line.sort_values("run")
+            ax.plot(line.run, line.value.astype(float), marker="o", markersize=3,
+                    label=str(method).replace("$", r"\$"))
+            bad = line[line.mark != ""]
+            ax.plot(bad.run, bad.value.astype(float), "x", color="red", markersize=9,
+                    markeredgewidth=2)
+        unit, higher = info.get(metric, ("", None))
+        arrow = "" if higher is None else " (higher is better)" if higher else \
+            " (lower is better)"
+        ax.set_title(f"{metric}{arrow}", fontsize=8)
+        ax.set_ylabel(unit, fontsize=7)
+        ax.set_xticks(ticks, [label.replace("$", r"\$") for label in labels], fontsize=6)
+        ax.grid(True, alpha=.3)
+    axes[0][0].legend(fontsize=6)
+    fig.tight_layout()
+    return fig
+
+
+def _job(record: dict) -> tuple:
+    job = record["job"]
+    return (job["model"], canonical_label(job["label"]), job["target_faces"],
+            shading_label(job["protocol"]))
+
+
+def _dict(value) -> dict:
+    return value if isinstance(value, dict) else {}
+
+
+def _text(value) -> str:
+    return value if isinstance(value, str) else ""
