@@ -126,8 +126,8 @@ def test_a_folder_without_runs_is_a_one_line_error(tmp_path):
     proc = _bench("history", tmp_path / "empty", "--out", tmp_path / "h")
     assert proc.returncode == 2
     assert proc.stderr.splitlines() == [
-        f"bench: error: {tmp_path / 'empty'}: no run folder (a folder with records/) in it "
-        "or directly under it; give bench run --out folders"]
+        (f"bench: error: {tmp_path / 'empty'}: no run folder (a folder with records/) in it "
+        "or directly under it; give bench run --out folders")]
 
 
 def _check(three_runs, tmp_path, fmt):

@@ -55,10 +55,10 @@ BASELINE_SCHEMA = 1
 FAILING_MARKS = ("worse", "not finite", "newly failing", "missing", "claim broken")
 
 
-def metric_info() -> dict[str, tuple[str, bool | None]]:
-    """Registered metric name -> (unit, higher_is_better); a plug-in that cannot be
-    loaded is left out (the report then shows its values unitless, and the gate does
-    not judge them)."""
+def metric_info(skip_broken: bool = True) -> dict[str, tuple[str, bool | None]]:
+    """Registered metric name -> (unit, higher_is_better). A plug-in that cannot be
+    loaded is left out (a report then shows its values unitless), unless
+    ``skip_broken`` is false: then its error propagates."""
     from bench.registry import registry
 
     out = {}
@@ -67,15 +67,20 @@ def metric_info() -> dict[str, tuple[str, bool | None]]:
             continue
         try:
             metric = entry.load()
-        except Exception:  # noqa: BLE001, S112 (a broken plug-in is left out)
+        except Exception:
+            if not skip_broken:
+                raise
             continue
         out[entry.name] = (str(metric.unit), metric.higher_is_better)
     return out
 
 
 def metric_directions() -> dict[str, bool]:
-    """Registered metric name -> higher_is_better, for metrics that have a direction."""
-    return {name: higher for name, (_, higher) in metric_info().items() if higher is not None}
+    """Registered metric name -> higher_is_better, for metrics that have a direction. The
+    gate's: a metric plug-in that cannot be loaded is an error here, never a metric
+    silently left ungated."""
+    return {name: higher for name, (_, higher) in metric_info(skip_broken=False).items()
+            if higher is not None}
 
 
 def _key(model: str, label: str, target: int, shading: str) -> str:

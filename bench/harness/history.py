@@ -31,11 +31,10 @@ from bench.harness.check import (
     metric_info,
     record_key,
 )
-from bench.harness.results import shading_label
 from bench.harness.report import figure, html_page, pyplot
 from bench.harness.report_images import RunFiles, Shown
 from bench.harness.report_table import esc
-from bench.harness.results import load_records, write_atomic
+from bench.harness.results import load_records, shading_label, write_atomic
 
 __all__ = ["Point", "find_runs", "history_table", "load_history",
            "write_history"]
@@ -132,10 +131,10 @@ def write_history(points: list[Point], out: Path, metrics: list[str],
     info = metric_info()
     shown = [m for m in metrics if m in set(table.metric)]
     parts = [f"<h1>Quality over {len(points)} runs</h1>",
-             f"<p class='note'>Each point is a run folder, at the commit and date it "
+             (f"<p class='note'>Each point is a run folder, at the commit and date it "
              f"recorded; a red cross is a value <code>bench check</code> would have failed "
              f"against {esc(reference)}. Metrics: {esc(', '.join(shown) or 'none')}. The "
-             "data: <a href='history.csv'>history.csv</a>.</p>",
+             "data: <a href='history.csv'>history.csv</a>.</p>"),
              _runs_table(points)]
     notes = [f"{p.folder.name}: {note}" for p in points for note in p.skipped]
     if notes:
