@@ -31,7 +31,7 @@ from bench.harness.check import (
     metric_info,
     record_key,
 )
-from bench.harness.report import figure, html_page, pyplot
+from bench.harness.report import as_dict, figure, html_page, plot_text, pyplot
 from bench.harness.report_images import RunFiles, Shown
 from bench.harness.report_table import esc
 from bench.harness.results import load_records, shading_label, write_atomic
@@ -78,7 +78,7 @@ def load_history(paths: list[Path], tolerance: float = 0.02,
     for folder in find_runs(paths):
         skipped = []
         records = load_records(folder, skipped=skipped)
-        commits = Counter(_text(_dict(r.get("environment")).get("git_commit")) or "unknown"
+        commits = Counter(_text(as_dict(r.get("environment")).get("git_commit")) or "unknown"
                           for r in records)
         dates = [_text(r.get("created")) for r in records if _text(r.get("created"))]
         points.append(Point(folder, commits.most_common(1)[0][0] if commits else "unknown",
@@ -185,7 +185,7 @@ def _figure(group, points: list[Point], metrics: list[str], info: dict):
         for method, line in rows.groupby("method", sort=True):
             line = line.sort_values("run")
             ax.plot(line.run, line.value.astype(float), marker="o", markersize=3,
-                    label=str(method).replace("$", r"\$"))
+                    label=plot_text(method))
             bad = line[line.mark != ""]
             ax.plot(bad.run, bad.value.astype(float), "x", color="red", markersize=9,
                     markeredgewidth=2)
@@ -194,7 +194,7 @@ def _figure(group, points: list[Point], metrics: list[str], info: dict):
             " (lower is better)"
         ax.set_title(f"{metric}{arrow}", fontsize=8)
         ax.set_ylabel(unit, fontsize=7)
-        ax.set_xticks(ticks, [label.replace("$", r"\$") for label in labels], fontsize=6)
+        ax.set_xticks(ticks, [plot_text(label) for label in labels], fontsize=6)
         ax.grid(True, alpha=.3)
     axes[0][0].legend(fontsize=6)
     fig.tight_layout()
@@ -205,10 +205,6 @@ def _job(record: dict) -> tuple:
     job = record["job"]
     return (job["model"], canonical_label(job["label"]), job["target_faces"],
             shading_label(job["protocol"]))
-
-
-def _dict(value) -> dict:
-    return value if isinstance(value, dict) else {}
 
 
 def _text(value) -> str:

@@ -41,7 +41,8 @@ from bench.harness.report_table import cell as _cell
 from bench.harness.report_table import esc as _esc
 from bench.harness.results import load_records, records_table, shading_label, write_atomic
 
-__all__ = ["PAGE_LIMIT", "SCRIPT", "figure", "html_page", "pyplot", "write_report"]
+__all__ = ["PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_page", "plot_text", "pyplot",
+           "write_report"]
 
 #: Above this many jobs the report is one page per model, linked from index.html, so no
 #: page holds more than one model's images.
@@ -193,7 +194,7 @@ def _protocol_note(records: list[dict]) -> str:
     if not ok:
         return "<p class='note'>No successful jobs.</p>"
     p = ok[0]["job"]["protocol"]
-    env = _dict(ok[0].get("environment"))
+    env = as_dict(ok[0].get("environment"))
     labels = _shadings(ok)
     shadings = " and ".join(s.replace("-spec", " + specular") for s in labels)
     if len(labels) > 1:
@@ -207,10 +208,10 @@ def _protocol_note(records: list[dict]) -> str:
             f"original's bounding-box diagonal; FLIP on {_esc(p['flip_views'])} views; "
             f"silhouettes over the 20 dodecahedron views. "
             f"Commit {_esc(str(env.get('git_commit'))[:12])}, "
-            f"{_esc(_dict(env.get('machine')).get('processor'))}.</p>")
+            f"{_esc(as_dict(env.get('machine')).get('processor'))}.</p>")
 
 
-def _dict(value) -> dict:
+def as_dict(value) -> dict:
     """``value`` if it is a dict, else an empty one (for optional, unchecked parts)."""
     return value if isinstance(value, dict) else {}
 
@@ -223,7 +224,7 @@ def _fixed(value, digits: int = 3) -> str:
     return f"{value:.{digits}f}"
 
 
-def _plot_text(text: str) -> str:
+def plot_text(text: str) -> str:
     """Record text for a matplotlib label: ``$`` would start mathtext (and a malformed
     formula aborts the whole figure), so it is escaped."""
     return str(text).replace("$", r"\$")
@@ -249,7 +250,7 @@ def _plots(table, out, slug: str) -> str:
     # One curve per method, and per evaluation shading when a run has several.
     series = table.method if table.shading.nunique() == 1 else \
         table.method + " (" + table.shading + ")"
-    series = series.map(_plot_text)
+    series = series.map(plot_text)
     imgs = []
     for column, title in (("d_rms", "d_RMS (luminance, 0-255) vs faces — cf. Figure 5"),
                           ("hausdorff_mean", "mean Hausdorff (fraction of diagonal) vs faces — cf. Figure 6")):
@@ -340,7 +341,7 @@ def _silhouette_plot(records: list[dict], out, slug: str) -> str:
         hist = np.asarray(r["silhouette_histogram"])
         mean = _fixed(r["metrics"].get("silhouette_mean"), 2)
         ax.bar(np.arange(len(hist)) + k * width, hist, width,
-               label=_plot_text(f"{r['job']['label']} ⟨x⟩={mean}"))
+               label=plot_text(f"{r['job']['label']} ⟨x⟩={mean}"))
     ax.set_xlabel("number of views in which an edge is a silhouette")
     ax.set_ylabel("share of edges")
     ax.set_title(f"Silhouette histograms at {smallest} faces — cf. Figure 7", fontsize=9)
