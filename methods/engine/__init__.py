@@ -41,7 +41,8 @@ quadric       Garland & Heckbert 1997 planes; with ``texture_weight`` > 0 on mes
               UVs, their 1998 quadrics over (x, y, z, u, v), one per wedge
 memoryless    Lindstrom & Turk 1998 volume and boundary change at the new position
 canny         González et al. 2007: incident area / total area if the edge's UV segment
-              crosses a texture border
+              crosses a texture border, as it is or (``canny_units="base-cost"``) in
+              the base cost's units, measured before the first collapse
 ============  =========================================================================
 
 Topology rules (each rejection is counted and reported):

@@ -79,7 +79,7 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
     if rules.weights.canny != 0.0:  # depends on the edge only, not on where the vertex goes
         canny = rules.weights.canny * _canny_penalty(
             a, b, P, mesh.F, mesh.FW, mesh.uv, terms.borders, mesh.vhead, mesh.cnext,
-            mesh.falive, scratch.efaces, terms.inv_area, scratch.no_record)
+            mesh.falive, scratch.efaces, terms.canny_per_area, scratch.no_record)
     return _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
                            terms, scratch, images)
 
@@ -220,11 +220,12 @@ def _image_term(u, v, p, mesh, rules, terms, scratch, images):
 
 
 @njit(cache=True)
-def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, inv_area,
+def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, per_area,
                    no_record):
-    """González et al. 2007, equations 1-2: (area of the edge's faces) / (total area)
+    """González et al. 2007, equations 1-2: (area of the edge's faces) × ``per_area``
     when the edge's UV segment, in any of its faces' charts, crosses a texture border;
-    0 otherwise. ``inv_area`` is 1 / the original's total area (positions normalised)."""
+    0 otherwise. ``per_area`` is 1 / the original's total area (equation 2's ratio) or
+    that ratio in the base cost's units (``Terms.canny_per_area``)."""
     k = _edge_faces(a, b, F, vhead, cnext, falive, efaces)
     h, w = borders.shape
     crossing = False
@@ -238,7 +239,7 @@ def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, in
             crossing = hit
         n = _normal(P[F[f, 0]], P[F[f, 1]], P[F[f, 2]])
         area += 0.5 * math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
-    return area * inv_area if crossing else 0.0
+    return area * per_area if crossing else 0.0
 
 
 @njit(cache=True)

@@ -16,6 +16,7 @@ Every helper takes a few named structures of :mod:`methods.engine.state`.
 from __future__ import annotations
 
 import heapq
+import math
 
 import numpy as np
 from numba import njit, types
@@ -43,7 +44,7 @@ from methods.engine.state import (
     Log,
     Queue,
 )
-from methods.engine.topology import _check, _edge_faces, _neighbors, _third
+from methods.engine.topology import _check, _edge_faces, _neighbors, _normal, _third
 from methods.imaging.counters import STAT_RUN_CYCLES, STAT_TILE_REBUILDS, cycles
 from methods.imaging.region import commit_geometry, commit_render
 from methods.imaging.tiles import TILE, build_tiles
@@ -88,6 +89,35 @@ def _collect_candidates(heap, mesh, rules, terms, scratch, images, queue):
                 cost, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
                 _push(heap, cost, a, b, 0, 0, scratch.p, keep)
                 _remember(queue, rules, a, b, nv, cost)
+
+
+@njit(cache=True)
+def initial_costs(mesh, rules, terms, scratch, images):
+    """The cost of every edge of the mesh before any collapse, as
+    :func:`_collect_candidates` would queue it (same edges, same order), and the area
+    of each edge's faces: (costs (e,), areas (e,)). Nothing is queued or changed but
+    ``scratch``; :func:`methods.engine.simplify._canny_units` measures the base cost's
+    scale with it."""
+    F = mesh.F
+    n = 0
+    costs = np.empty(3 * F.shape[0])
+    areas = np.empty(3 * F.shape[0])
+    for f in range(F.shape[0]):
+        if not mesh.falive[f]:
+            continue
+        for j in range(3):
+            a, b = F[f, j], F[f, (j + 1) % 3]
+            k = _edge_faces(a, b, F, mesh.vhead, mesh.cnext, mesh.falive, scratch.efaces)
+            if a < b or k == 1:
+                area = 0.0
+                for i in range(min(k, scratch.efaces.shape[0])):
+                    g = scratch.efaces[i]
+                    nrm = _normal(mesh.P[F[g, 0]], mesh.P[F[g, 1]], mesh.P[F[g, 2]])
+                    area += 0.5 * math.sqrt(nrm[0] ** 2 + nrm[1] ** 2 + nrm[2] ** 2)
+                costs[n], _ = _evaluate(a, b, mesh, rules, terms, scratch, images)
+                areas[n] = area
+                n += 1
+    return costs[:n], areas[:n]
 
 
 @njit(cache=True)

@@ -19,6 +19,15 @@ PLACE_MEMORYLESS = 3
 PLACEMENTS = {"optimal": PLACE_OPTIMAL, "endpoints": PLACE_ENDPOINTS,
               "midpoint": PLACE_MIDPOINT, "memoryless": PLACE_MEMORYLESS}
 
+#: Units of the Canny penalty (``Policy.canny_units``): ``area`` adds González et al.
+#: 2007's area ratio (equation 2) to the cost as it is, which suits a dimensionless
+#: base cost (entropy-twin's viewpoint entropy); ``base-cost`` expresses it in the base
+#: cost's own units, measured on the mesh before the first collapse
+#: (:func:`methods.engine.simplify._canny_units`), so that the balance between the
+#: penalty and a length-dependent cost (quadrics) does not depend on the mesh's size or
+#: on the engine's normalisation.
+CANNY_UNITS = ("area", "base-cost")
+
 
 # The validity rules, checked in this order by methods.engine.topology._check (the seam
 # rule is the cost function's verdict, an infinite cost). A candidate collapse of u into
@@ -109,6 +118,8 @@ class Policy:
         Weight of the Lindstrom–Turk cost (methods.engine.lindstrom_turk).
     canny_weight : float
         Weight of the González 2007 texture-border penalty (needs ``borders``).
+    canny_units : str
+        One of :data:`CANNY_UNITS`: what one unit of ``canny_weight`` is worth.
     boundary_weight : float
         Weight of the boundary-preserving planes added to the quadrics (Garland &
         Heckbert 1997 §6.1); 1000 is QSlim's default.
@@ -138,6 +149,7 @@ class Policy:
     quadric_weight: float = 1.0
     memoryless_weight: float = 0.0
     canny_weight: float = 0.0
+    canny_units: str = "area"
     boundary_weight: float = 1000.0
     max_normal_rotation: float = 90.0
     boundary_lock: bool = False
@@ -153,6 +165,9 @@ class Policy:
                              f"{', '.join(PLACEMENTS)}")
         if not 0 < self.max_normal_rotation <= 180:
             raise ValueError("max_normal_rotation must be in (0, 180] degrees")
+        if self.canny_units not in CANNY_UNITS:
+            raise ValueError(f"unknown canny_units {self.canny_units!r}; choose one of "
+                             f"{', '.join(CANNY_UNITS)}")
 
 
 @dataclass

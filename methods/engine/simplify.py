@@ -10,7 +10,7 @@ import numpy as np
 
 from bench.io.atlas import wedge_tiles
 from bench.mesh import Mesh
-from methods.engine.loop import _run
+from methods.engine.loop import _run, initial_costs
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
 from methods.engine.quadrics import _boundary_corners, initial_quadrics, wedge_quadrics
 from methods.engine.scale import scaled, workable_exponent
@@ -37,6 +37,13 @@ from methods.imaging.state import dummy_state
 
 #: The default policy (one shared instance: a Policy is never modified).
 DEFAULT_POLICY = Policy()
+
+#: The bounding-box diagonal of the geometry the costs are computed on (:func:`_prepare`).
+WORKING_DIAGONAL = 1.0
+
+#: A mean initial base cost at most this many times the rounding noise of the costs
+#: measures no scale (:func:`_canny_units`).
+CANNY_NOISE_FACTOR = 1000.0
 
 
 def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY,
@@ -66,9 +73,9 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
 
     Notes
     -----
-    Costs and quadrics are computed on positions normalised to a unit bounding-box
-    diagonal; ``quadrics`` in the result are in those units. A mesh with coordinates
-    beyond 2^±60 is simplified as a copy scaled by a power of two
+    Costs and quadrics are computed on positions normalised to a bounding-box diagonal
+    of :data:`WORKING_DIAGONAL` (1); ``quadrics`` in the result are in those units. A
+    mesh with coordinates beyond 2^±60 is simplified as a copy scaled by a power of two
     (:mod:`methods.engine.scale`) and its result scaled back.
     """
     import time
@@ -90,10 +97,16 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     if policy.canny_weight != 0.0 and (borders is None or mesh.uv is None):
         raise ValueError("the Canny term needs texture borders and UVs; pass borders= "
                          "(methods.engine.canny.texture_borders) for a mesh with UVs")
+    if policy.canny_weight != 0.0 and policy.canny_units == "base-cost" and image is not None:
+        raise ValueError("canny_units='base-cost' measures the base cost without "
+                         "rendering; it does not combine with the image term")
     arrays = _quadrics(mesh, policy, prep)
     rules = _rules(mesh, policy, image, prep, target_faces, verify, max_collapses)
     terms = _terms(policy, prep, borders, rules)
     images = _image_state(mesh, image, arrays, prep, _texture_quadrics(mesh, policy))
+    canny_stats = {}
+    if policy.canny_weight != 0.0 and policy.canny_units == "base-cost":
+        terms, canny_stats = _canny_units(arrays, rules, terms, images)
     stopped, evaluations, mismatches, rejects, log = _run(
         arrays, rules, terms, new_scratch(len(arrays.P)), images, prep.kinds)
     image_stats = {} if image is None else image.statistics(
@@ -114,6 +127,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     stats = _statistics(n, evaluations, mismatches, rejects, prep.kinds, verify,
                         time.perf_counter() - start)
     stats.update(image_stats)
+    stats.update(canny_stats)
     if tiles is not None:
         stats["uvs_kept_in_tile"] = clamped
     out_log, Q, valive = _log_in_input_numbering(log, prep, arrays, tiles)
@@ -137,7 +151,7 @@ def _prepare(mesh: Mesh, policy: Policy, image) -> _Prepared:
     # positions in the output.
     P0 = w.positions.astype(np.float64)
     lo = P0.min(axis=0)
-    scale = float(np.linalg.norm(P0.max(axis=0) - lo)) or 1.0
+    scale = (float(np.linalg.norm(P0.max(axis=0) - lo)) or 1.0) / WORKING_DIAGONAL
     P = (P0 - lo) / scale
     F = w.faces.astype(np.int64).copy()
     FW = mesh.faces.astype(np.int64).copy()
@@ -213,7 +227,8 @@ def _rules(mesh: Mesh, policy: Policy, image, prep: _Prepared, target_faces, ver
 
 def _terms(policy: Policy, prep: _Prepared, borders, rules: Rules) -> Terms:
     """Inputs of the Canny and R^5 terms: texture borders, 1 / the total area at unit
-    diagonal, κ per face."""
+    diagonal (the Canny penalty per unit area in ``canny_units="area"``; see
+    :func:`_canny_units` for the other), κ per face."""
     P, F, FW, uv = prep.mesh.P, prep.mesh.F, prep.mesh.FW, prep.mesh.uv
     borders_arr = (np.ascontiguousarray(borders, dtype=np.bool_) if borders is not None
                    else np.zeros((1, 1), np.bool_))
@@ -222,6 +237,47 @@ def _terms(policy: Policy, prep: _Prepared, borders, rules: Rules) -> Terms:
     inv_area = 1.0 / area if area > 0 else 0.0
     face_kappa = _face_kappa(P, F, FW, uv) if rules.use_r5 else np.ones(1)
     return Terms(borders_arr, inv_area, face_kappa)
+
+
+def _canny_units(arrays: MeshArrays, rules: Rules, terms: Terms, images) -> tuple:
+    """``terms`` with the Canny penalty in the base cost's units (``canny_units=
+    "base-cost"``), and what was measured, for the statistics.
+
+    Every edge of the mesh is costed once without the penalty, as the loop will queue
+    it (:func:`methods.engine.loop.initial_costs`). The penalty of equation 2 of
+    González et al. 2007, the area ratio r_e = a_e / A_T (a_e the area of the edge's
+    faces, A_T the mesh's), becomes r_e × c̄ / r̄: c̄ is the mean of the finite
+    initial base costs and r̄ the mean of r_e over the same edges, so per unit of area
+    the penalty is c̄ / ā (ā the mean a_e), and an edge of average area that crosses a
+    border costs one average collapse more. Scaling the mesh by s multiplies a quadric
+    cost by s⁴ (area-weighted squared distances), and so c̄ and the penalty, which is
+    c̄ times a pure number: cost and penalty keep their ratio whatever the mesh's size
+    or :data:`WORKING_DIAGONAL` (by a power of two, the chosen collapses are the same
+    to the bit).
+
+    A mesh whose base costs are all zero but for rounding (a box of flat faces with
+    affine UVs: costs of ±1e-18 at unit diagonal) has no scale to measure. Base costs
+    are never negative but by rounding, so the largest negative one's magnitude is the
+    rounding noise of this mesh's costs; when c̄ is not above
+    :data:`CANNY_NOISE_FACTOR` times it, the penalty is r_e / r̄, a pure number that
+    alone orders the edges, as equation 2 does among equal costs."""
+    base = rules._replace(weights=rules.weights._replace(canny=0.0))
+    costs, areas = initial_costs(arrays, base, terms, new_scratch(len(arrays.P)), images)
+    finite = np.isfinite(costs)
+    costs, areas = costs[finite], areas[finite]
+    mean_cost = float(costs.mean()) if len(costs) else 0.0
+    noise = max(0.0, -float(costs.min())) if len(costs) else 0.0
+    mean_area = float(areas.mean()) if len(areas) else 0.0
+    measured = mean_cost > 0.0 and mean_cost > CANNY_NOISE_FACTOR * noise
+    if not mean_area > 0.0:
+        per_area = 0.0
+    elif measured:
+        per_area = mean_cost / mean_area
+    else:
+        per_area = 1.0 / mean_area
+    return terms._replace(canny_per_area=per_area), {
+        "canny_base_cost": mean_cost if measured else 0.0,
+        "canny_cost_noise": noise, "canny_edges_costed": int(len(costs))}
 
 
 def _image_state(mesh: Mesh, image, a: MeshArrays, prep: _Prepared, texture_quadrics):

@@ -77,9 +77,11 @@ MeshArrays = namedtuple("MeshArrays", "P Q F FW falive vhead cnext valive vbound
 Rules = namedtuple("Rules", "placement weights cos_limit boundary_lock seam_rule "
                             "boundary_rule verify has_uv use_r5 uv_fix target max_collapses")
 
-#: Read-only inputs of the cost terms: Canny ``borders`` (h, w) bool, ``inv_area``
-#: (1 / total area), ``face_kappa`` (m,) κ of each face's texture patch.
-Terms = namedtuple("Terms", "borders inv_area face_kappa")
+#: Read-only inputs of the cost terms: Canny ``borders`` (h, w) bool,
+#: ``canny_per_area`` (the Canny penalty per unit of an edge's face area, before the
+#: weight: 1 / total area, or in the base cost's units; see Policy.canny_units),
+#: ``face_kappa`` (m,) κ of each face's texture patch.
+Terms = namedtuple("Terms", "borders canny_per_area face_kappa")
 
 #: Lindstrom–Turk profile of an edge, each (PROFILE_CAP, 3): triangle corners
 #: ``tri_a``/``tri_b``/``tri_c``, boundary edges ``bnd_a``/``bnd_b``, ``link`` vertices.
