@@ -4,10 +4,49 @@ Castelló & Chover 2007 (seed 003, §3, equations 1-2, Figure 3).
 The texture's Canny borders are found once (:func:`methods.engine.canny.texture_borders`,
 sigma 0.75, thresholds 0.5 / 0.6 of the maximum gradient magnitude, MATLAB's
 convention). While simplifying, an edge whose UV segment crosses a border pixel, in
-any of its faces' UV charts, costs extra: the area of its faces over the mesh's total
-area, on geometry normalised to a unit bounding-box diagonal. The base cost is the
-quadric of ``quadric`` (with its texture quadrics, default) or the memoryless cost;
+any of its faces' UV charts, costs extra: equation 2 adds to its base cost c_e the area
+of its faces over the mesh's total area, r_e = a_e / A_T. The base cost is the quadric
+of ``quadric`` (with its texture quadrics, default) or the memoryless cost;
 ``canny_weight`` scales the penalty (the paper adds it with weight 1).
+
+The penalty's units (``canny_units``), where the paper is open:
+
+* r_e is a pure number and c_e is not. The paper's base is "our own geometric
+  simplification method based on edge collapse operations that make use of quadrics"
+  (§1, §4), so c_e is an area-weighted squared distance in the model's own units,
+  which the paper neither gives nor normalises (its models have 308 to 5,400 polygons,
+  Table 1, simplified to 75 %, 50 % and 25 % of their edges). The literal sum
+  c_e + r_e therefore has no fixed balance: it depends on the model's size, and here on
+  the engine's normalisation to a unit bounding-box diagonal, where quadric costs are
+  tiny (the torus's mean initial cost is 7.6e-12, its mean r_e 3.1e-5): the penalty
+  outweighed every quadric, the collapses went through the non-crossing edges first
+  whatever their geometric error, and at 2 % of the torus d_rms was 29.8 against
+  quadric's 15.6 (``reports/baselines/ci.json``, version 4).
+* What the paper wants of the balance is in its own words: the penalty changes "the
+  order of the collapses" (§3.1) so that "the regions with great changes in the
+  texture are simplified later than the others that have fewer changes in the texture
+  and a similar previous error" (§5), the area measuring how "noticeable" a removal is
+  (§3.2). The penalty is a reordering among collapses of comparable base cost, not a
+  partition of the edges. So ``canny_units="base-cost"`` (default) states r_e in the
+  base cost's units, measured on the mesh before the first collapse: the penalty is
+  r_e × c̄ / r̄, with c̄ the mean initial base cost of the edges and r̄ their mean area
+  ratio (:func:`methods.engine.simplify._canny_units`). At weight 1, an edge of average
+  area that crosses a border costs one average collapse more; larger faces more, in
+  proportion to their area, as equation 2 says. Penalty and base cost then scale
+  together: resizing the mesh or changing the working diagonal
+  (:data:`methods.engine.simplify.WORKING_DIAGONAL`) chooses the same collapses
+  (``tests/test_engine_methods.py``). The unit is fixed once, so during the
+  simplification the penalty and the base cost evolve as equation 2's terms do in fixed
+  units: areas grow as faces are removed, accumulated quadrics grow faster, and the
+  penalty matters most in the first half of the collapses, the range the paper shows.
+  A mesh whose base costs are zero but for rounding (flat faces, affine UVs) has no
+  scale to measure; its penalty is r_e / r̄ (see ``_canny_units``).
+* ``canny_units="area"`` is the version-4 behaviour, r_e added as it is to costs at
+  unit diagonal, kept to compare with (the ``g2007`` suite runs both).
+
+The statistics give the crossing edges before and after (``crossing_share_*``, of the
+welded edges) and the measured unit (``canny_base_cost``: c̄; 0 when none was
+measured).
 """
 
 from __future__ import annotations
@@ -27,8 +66,11 @@ __all__ = ["CannyTexture", "crossing_share"]
 class CannyTexture(Method):
     name = "canny-texture"
     # 2: quadric base with texture quadrics; 3: superseded entries dropped; 4: a wedge
-    # merges once per collapse (the quadric base counted it once per face of the edge)
-    version = "4"
+    # merges once per collapse (the quadric base counted it once per face of the edge);
+    # 5: the penalty in the base cost's units (canny_units="base-cost"): as an area
+    # ratio added to quadrics at unit diagonal it outweighed every quadric cost (by
+    # 4 million times the mean on the torus) and so depended on our normalisation
+    version = "5"
     summary = "quadric (or memoryless) cost + Canny texture-border penalty (own engine)"
     reference = ("González, Castelló & Chover, A texture-based metric extension for "
                  "simplification methods, GRAPP 2007")
@@ -39,6 +81,9 @@ class CannyTexture(Method):
     class Params:
         base: Literal["quadric", "memoryless"] = "quadric"
         canny_weight: float = 1.0
+        #: "base-cost": the area ratio in the base cost's units (see the module notes);
+        #: "area": the area ratio added as it is to costs at unit diagonal (version 4)
+        canny_units: Literal["base-cost", "area"] = "base-cost"
         sigma: float = 0.75
         low: float = 0.5
         high: float = 0.6
@@ -50,8 +95,10 @@ class CannyTexture(Method):
         if p.base == "memoryless":
             return Policy(placement="memoryless", quadric_weight=0.0, memoryless_weight=1.0,
                           boundary_weight=0.0, canny_weight=p.canny_weight,
+                          canny_units=p.canny_units,
                           max_normal_rotation=p.max_normal_rotation)
-        return Policy(canny_weight=p.canny_weight, max_normal_rotation=p.max_normal_rotation,
+        return Policy(canny_weight=p.canny_weight, canny_units=p.canny_units,
+                      max_normal_rotation=p.max_normal_rotation,
                       texture_weight=p.texture_weight)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:

@@ -72,3 +72,80 @@ def test_memoryless_r5_keeps_an_affine_texture_map_exact(target):
     np.testing.assert_allclose(out.uv, affine(out.positions), atol=1e-12)
     plain = simplify_mesh(mesh, target, dataclasses.replace(policy, r5_uv=False)).mesh
     assert np.abs(plain.uv - affine(plain.positions)).max() > 1e-3
+
+
+def _canny_faces(mesh, target, **params):
+    method = registry("method").load("canny-texture")(**params)
+    result = run_method(method, mesh, target)
+    assert result.stop_reason is None
+    return result
+
+
+@pytest.mark.parametrize("units, same", [("base-cost", True), ("area", False)])
+def test_canny_texture_choices_do_not_depend_on_scale(units, same, bunny_textured,
+                                                      monkeypatch):
+    """In the base cost's units the penalty scales as the quadrics do, so neither the
+    mesh's size nor the diagonal the engine normalises to changes a collapse (scales by
+    powers of two are exact, so the faces are equal to the bit). The version-4 penalty,
+    the area ratio added as it is, only survives resizing the mesh, which the
+    normalisation takes away; at a larger working diagonal the quadrics grow against it
+    and the faces change (at a smaller one it outweighs them further, as at 1). The base is Garland-Heckbert 1997's geometric quadric
+    (texture_weight=0, the paper's base method): texture quadrics mix lengths with UVs,
+    so the base itself depends on the normalisation."""
+    import methods.engine.simplify as engine
+
+    params = {"texture_weight": 0.0, "canny_units": units}
+    reference = _canny_faces(bunny_textured, 1000, **params)
+    for factor in (1024.0, 2.0 ** -20):
+        resized = bunny_textured.replace(positions=bunny_textured.positions * factor)
+        got = _canny_faces(resized, 1000, **params)
+        np.testing.assert_array_equal(got.mesh.faces, reference.mesh.faces)
+        np.testing.assert_array_equal(got.mesh.positions, reference.mesh.positions * factor)
+    unchanged = []
+    for diagonal in (32.0, 1 / 32):
+        monkeypatch.setattr(engine, "WORKING_DIAGONAL", diagonal)
+        got = _canny_faces(bunny_textured, 1000, **params)
+        unchanged.append(got.mesh.faces.shape == reference.mesh.faces.shape
+                         and (got.mesh.faces == reference.mesh.faces).all()
+                         and (got.mesh.uv == reference.mesh.uv).all())
+    assert all(unchanged) == same, unchanged
+
+
+def test_canny_texture_penalty_is_one_mean_cost_per_mean_area(bunny_textured):
+    """canny_units="base-cost": an edge of the mean face area that crosses a border
+    costs the mean initial base cost more (methods.engine.simplify._canny_units)."""
+    from methods.engine.canny import texture_borders
+    from methods.engine.loop import initial_costs
+    from methods.engine.policy import Policy
+    from methods.engine.simplify import (_canny_units, _image_state, _prepare, _quadrics,
+                                         _rules, _terms)
+    from methods.engine.state import new_scratch
+
+    policy = Policy(canny_weight=1.0, canny_units="base-cost", texture_weight=1.0)
+    prep = _prepare(bunny_textured, policy, None)
+    arrays = _quadrics(bunny_textured, policy, prep)
+    rules = _rules(bunny_textured, policy, None, prep, 1, False, None)
+    terms = _terms(policy, prep, texture_borders(bunny_textured.texture), rules)
+    images = _image_state(bunny_textured, None, arrays, prep, True)
+    scaled, stats = _canny_units(arrays, rules, terms, images)
+    base = rules._replace(weights=rules.weights._replace(canny=0.0))
+    costs, areas = initial_costs(arrays, base, terms, new_scratch(len(arrays.P)), images)
+    finite = np.isfinite(costs)
+    assert finite.sum() == stats["canny_edges_costed"] > 0.9 * len(costs)
+    assert stats["canny_base_cost"] == pytest.approx(costs[finite].mean(), rel=1e-12)
+    assert scaled.canny_per_area * areas[finite].mean() == pytest.approx(
+        costs[finite].mean(), rel=1e-12)
+    # the version-4 unit was 1 / total area, thousands of times larger here
+    assert terms.canny_per_area > 1000 * scaled.canny_per_area
+
+
+def test_canny_texture_on_flat_faces_orders_by_area_ratio():
+    """The crate's faces are flat with affine UVs: its base costs are rounding noise
+    (some negative), which measures no scale, so the penalty is the area ratio over
+    its mean, a pure number."""
+    from bench.models import resolve_model
+
+    crate = resolve_model("crate")
+    result = _canny_faces(crate, 300)
+    assert result.stats["canny_base_cost"] == 0.0
+    assert result.stats["canny_cost_noise"] > 0.0
