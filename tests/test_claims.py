@@ -11,7 +11,7 @@ import pytest
 
 from bench.cli import main
 from bench.harness.check import FAILING_MARKS, baseline_problem, compare, make_baseline
-from bench.harness.claims import Claim, evaluate_claim
+from bench.harness.claims import STATS_PREFIX, Claim, evaluate_claim
 from bench.harness.results import write_record
 from bench.harness.suites import SUITES, Suite
 from conftest import made_up_record
@@ -52,6 +52,16 @@ def test_verdicts_compare_with_the_threshold_and_the_papers_ratio(a, paper, verd
     claim = Claim("c", "P", "s", "d_rms", "a", "b", below=1.0, paper_value=paper)
     res = evaluate_claim(claim, [rec("a", d_rms=a), rec("b", d_rms=4.0)])
     assert res.verdict == verdict
+
+
+def test_a_claim_reads_a_method_statistic_with_the_stats_prefix():
+    claim = Claim("c", "P", "s", "stats.kept", "a", "b", below=1.0)
+    a, b = rec("a"), rec("b")
+    a["stats"]["kept"], b["stats"]["kept"] = 0.2, 0.4
+    res = evaluate_claim(claim, [a, b])
+    assert [(r["value"], r["passes"]) for r in res.rows] == [(0.5, True)]
+    del a["stats"]["kept"]  # a statistic the method did not record: no row
+    assert evaluate_claim(claim, [a, b]).verdict == "no data"
 
 
 def test_no_records_failed_jobs_and_undefined_metrics_give_no_data():
@@ -115,7 +125,8 @@ def test_every_claim_of_the_suites_names_variants_and_metrics_that_exist():
         labels = {canonical_label(f"{m}[{','.join(f'{k}={v}' for k, v in p.items())}]"
                                   if p else m) for m, p in (suite.variants or ())}
         for c in suite.claims:
-            assert c.metric in directions or c.metric == "seam_cracks", c.name
+            assert (c.metric in directions or c.metric == "seam_cracks"
+                    or c.metric.startswith(STATS_PREFIX)), c.name
             if suite.variants is not None:
                 assert canonical_label(c.method) in labels, c.name
                 assert c.against is None or canonical_label(c.against) in labels, c.name

@@ -41,6 +41,8 @@ def test_canny_texture_shows_its_borders_and_penalised_edges(bunny_textured):
     red = (image[..., 0] > 200) & (image[..., 1] < 80)
     assert red.sum() > 0  # penalised edges drawn
     assert result.stats["crossing_edges_before"] == 249
+    # the g2007 suite's claim g2007-borders reads this statistic
+    assert 0 < result.stats["crossing_share_after"] < 1
 
 
 def test_canny_texture_needs_a_texture():

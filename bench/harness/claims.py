@@ -31,6 +31,9 @@ __all__ = ["Claim", "ClaimResult", "VERDICTS", "HOLDING", "evaluate_claim", "cla
 VERDICTS = ("holds", "holds, weaker", "mixed", "does not hold", "no data")
 #: Verdicts under which a claim counts as holding (for ``bench check``).
 HOLDING = ("holds", "holds, weaker")
+#: A claim's metric with this prefix is a statistic of the method's record
+#: (``record["stats"]``), not a protocol metric.
+STATS_PREFIX = "stats."
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,8 @@ class Claim:
     ``method`` and ``against`` are method labels as a run writes them
     (``name[key=value,...]``). With ``against``, a row's value is ``metric(method) /
     metric(against)`` on the same model, budget and shading; without it, the value is
-    ``metric(method)``. A row passes when its value is below ``below``, or at least
+    ``metric(method)``; a ``metric`` named ``stats.NAME`` is the method's own statistic
+    NAME (its record's ``stats``), for what the protocol does not measure. A row passes when its value is below ``below``, or at least
     ``at_least`` (exactly one is given). ``models``, ``faces`` and ``ratios`` (a budget
     as a fraction of the model's faces) narrow the rows; empty, every one of the suite's
     counts. ``shading`` names the evaluation shading (``flat``, ``gouraud-spec``, ...)."""
@@ -135,7 +139,12 @@ def _in_budget(claim: Claim, record: dict) -> bool:
 
 
 def _value(record: dict, metric: str) -> float:
-    value = (record.get("metrics") or {}).get(metric)
+    """``metric`` of ``record``: a protocol metric, or with the prefix ``stats.`` a
+    statistic the method recorded (``stats.crossing_share_after``); NaN if missing."""
+    if metric.startswith(STATS_PREFIX):
+        value = (record.get("stats") or {}).get(metric[len(STATS_PREFIX):])
+    else:
+        value = (record.get("metrics") or {}).get(metric)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return math.nan
     return float(value)

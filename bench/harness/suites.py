@@ -32,6 +32,13 @@ highlights (where the paper's gain is largest, Figure 4a and d), on the puzzle t
 the bunny at 90 % and 98 % simplification. perceptual-mt is view-dependent: each view
 is imaged with its own cut.
 
+``g2007`` is González, Castelló & Chover 2007 (seed 003_a77a1165a4e02bd6.txt):
+canny-texture against its base alone over the whole budget range, from the paper's own
+50 % and 25 % (§4) to the 2-0.5 % where the version-4 penalty failed, on the torus and
+``bunny-textured``; canny-texture also with that version-4 penalty (``canny_units=area``)
+and with ``canny_weight=0`` (quadric's policy exactly, so that the base's crossing edges
+are recorded too; its d_rms equals quadric's).
+
 ``g2008`` is González et al. 2008 (seed 004_7b79a0217de1c060.txt): entropy-twin on the
 game-style ``crate`` (duplicated vertices on every box edge) and ``barrel`` (two
 materials meeting along a seam) at 300 and 100 faces, where qslim on the same unwelded
@@ -104,6 +111,9 @@ def _scaled(faces: tuple[int, ...], of: int, to: int) -> tuple[int, ...]:
 LT2000_BUNNY_FACES = (2899, 1333, 654, 304, 143)
 #: Our bunny's faces (pymeshlab's bunny.obj).
 BUNNY_FACES = 56172
+#: The g2007 suite's budgets: the paper's 50 % and 25 % (§4: 75, 50 and 25 % of the
+#: edges kept) down to the 2 % and 1 % of the ci suite and below.
+G2007_RATIOS = (0.5, 0.25, 0.1, 0.05, 0.02, 0.01, 0.005)
 
 SUITES = {
     "ci": Suite(
@@ -260,6 +270,32 @@ SUITES = {
             Claim("g2008-seams", "González et al. 2008, §3",
                   "twin edges keep the seams of game-style meshes closed: no seam cracks",
                   "seam_cracks", "entropy-twin", below=0.5, models=("crate", "barrel")),
+        )),
+    "g2007": Suite(
+        "g2007", "González et al. 2007 (GRAPP): canny-texture (the penalty in the base "
+        "cost's units, and as the version-4 area ratio at unit diagonal) against its base "
+        "alone (canny_weight=0, quadric's policy, which also records the crossing edges) "
+        "and quadric, on the torus and bunny-textured from 50 % to 0.5 % of the faces",
+        models=("torus", "bunny-textured"),
+        variants=(("canny-texture", {}), ("canny-texture", {"canny_units": "area"}),
+                  ("canny-texture", {"canny_weight": 0.0}), ("quadric", {})),
+        ratios=G2007_RATIOS,
+        claims=(
+            Claim("g2007", "González et al. 2007, §4 and Figures 7-17",
+                  "the Canny texture penalty gives a textured model a lower image error "
+                  "than its base method alone", "d_rms", "canny-texture", "quadric",
+                  below=1.0),
+            Claim("g2007-paper-range", "González et al. 2007, §4 and Figures 7-17",
+                  "the same at the paper's own levels, 50 % and 25 % of the faces",
+                  "d_rms", "canny-texture", "quadric", below=1.0, ratios=(0.5, 0.25),
+                  note="the paper shows 75 %, 50 % and 25 % of the edges kept"),
+            Claim("g2007-borders", "González et al. 2007, §4 and §5",
+                  "the penalty keeps edges that cross texture borders: without it (the "
+                  "base alone) a smaller share of the result's edges crosses a border",
+                  "stats.crossing_share_after", "canny-texture[canny_weight=0]",
+                  "canny-texture", below=1.0,
+                  note="crossing_share_after: the share of the result's welded edges "
+                  "whose UV segment crosses a Canny border (methods/canny_texture.py)"),
         )),
     # Ablations: what a claim's outcome comes from (issue notes give the tables).
     "lt2000-interior-ablation": Suite(
