@@ -63,7 +63,13 @@ Choices where the paper is vague, and why:
   changes that are each of the order of a projected-area share, so the penalty is
   added once per view (``canny_weight`` × ``views``); with weight 1 alone the median
   penalty of a crossing edge was 8-12 times smaller than the median entropy cost of
-  the collapses that take ``bunny-textured-4698`` and ``crate`` to half their faces;
+  the collapses that take ``bunny-textured-4698`` and ``crate`` to half their faces.
+  Both terms are pure numbers (shares of pixels, shares of area) measured on images
+  framed by the bounding sphere, so their sum does not depend on the mesh's size or on
+  the engine's normalisation, and the penalty stays an area ratio here
+  (``Policy.canny_units="area"``); ``canny-texture`` adds it to quadrics, which are
+  lengths, and states it in their units instead. §3 of the paper only says that
+  crossing edges are "penalised by incrementing their cost";
 * pre-simplification (not in the paper, whose models had at most 13,810 faces): meshes
   with more than ``PRESIMPLIFY_RATIO`` (20) times the target faces are first brought
   to that size by the engine's Garland-Heckbert 1998 quadrics (seams closed, charts
