@@ -78,9 +78,10 @@ def run(args) -> int:
 
     page = write_reproduction(out, results, seconds)
     width = max(len(c.name) for c in claims)
-    print(f"{'claim':<{width}}  {'test':<26} {'paper':<22} {'ours':<28} verdict")
+    test_width = max([26] + [len(c.test) + 1 for c in claims])
+    print(f"{'claim':<{width}}  {'test':<{test_width}} {'paper':<22} {'ours':<28} verdict")
     for res in results:
-        print(one_line(f"{res.claim.name:<{width}}  {res.claim.test:<26} "
+        print(one_line(f"{res.claim.name:<{width}}  {res.claim.test:<{test_width}} "
                        f"{res.claim.paper or 'qualitative':<22} {res.summary:<28} "
                        f"{res.verdict}"))
     took = f" in {seconds / 60:.1f} min" if seconds is not None else ""
