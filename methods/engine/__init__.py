@@ -9,6 +9,8 @@ Every method of the suite that removes edges runs on this engine. The pipeline, 
     _quadrics                   vertex planes, or per-wedge 5-D quadrics
     _rules, _terms              the policy as codes; the cost terms' inputs
     _image_state                the image term's state, original rendered
+    _canny_units                with canny_units="base-cost": the base cost's scale
+                                from every edge's initial cost (initial_costs)
     _run (numba, loop.py)       _collect_candidates; then _pop_current, _check_candidate
                                 (or _block), _take (log, collapse, images),
                                 _requeue_neighbours / _requeue_apexes
