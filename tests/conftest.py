@@ -95,13 +95,15 @@ def made_up_record(label: str = "q", status: str = "ok", model: str = "m", **cha
 
 
 def without_own_scripts(page: str) -> str:
-    """A report ``page`` without the report's own scripts (the summary table's and the
-    comparison grids' toggle), which it must hold exactly once each: what is left may
-    hold no script at all."""
-    from bench.harness.report import SCRIPT
+    """A report ``page`` without the report's own scripts (the error catcher, the summary
+    table's and the comparison grids' toggle), which it must hold exactly once each, and
+    the 3D view's (at most once): what is left may hold no script at all."""
+    from bench.harness.report import ERRORS_SCRIPT, SCRIPT
     from bench.harness.report_grid import GRID_SCRIPT
+    from bench.harness.report_viewer import VIEWER_SCRIPT
 
-    for own in (SCRIPT, GRID_SCRIPT):
+    for own in (ERRORS_SCRIPT, SCRIPT, GRID_SCRIPT):
         assert page.count(own) == 1
         page = page.replace(own, "")
-    return page
+    assert page.count(VIEWER_SCRIPT) <= 1
+    return page.replace(VIEWER_SCRIPT, "")

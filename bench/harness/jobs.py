@@ -5,7 +5,9 @@ cartesian product of what ``bench run`` was given.
 
 A job never writes into the run folder itself. :func:`run_job` returns a
 :class:`JobResult`: the record and the files that go with it (the report's sheet
-images, a method's artifacts) as PNG bytes keyed by their path inside the run folder.
+images and a method's artifacts as PNG bytes; the evaluated mesh and the original as
+GLB files for the report's 3D view, :func:`mesh_paths`) keyed by their path inside the
+run folder.
 Whoever asked for the job writes it with :func:`store_result`, files first and the
 record last, each atomically: the local pool's parent process, or the Dask client for a
 job that ran on a machine that does not see the run folder. So a record on disk always
@@ -51,7 +53,7 @@ from bench.harness.results import SCHEMA_VERSION, write_file, write_record
 from metrics.protocol import Protocol
 
 __all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "canonical_label", "environment",
-           "evaluate_result", "failed_result",
+           "evaluate_result", "failed_result", "mesh_paths",
            "method_label", "plan", "run_job", "store_result"]
 
 #: Protocol views shown in the report's image sheets (spread over the sphere).
@@ -143,9 +145,10 @@ def plan(models: list[str], variants: list[tuple[str, dict]], budgets: dict[str,
 class JobResult:
     """A finished job: its record and its files, not yet on any disk.
 
-    ``files`` are this job's own (its sheet views and artifacts); ``shared_files`` are the
-    original's sheet views, the same bytes for every job of the model and shading, so
-    they are written only when absent. Keys are paths relative to the run folder.
+    ``files`` are this job's own (its sheet views, artifacts and mesh); ``shared_files``
+    are the original's sheet views and mesh, the same bytes for every job of the model
+    (and shading, for views), so they are written only when absent. Keys are paths
+    relative to the run folder.
     """
 
     job: Job
@@ -287,6 +290,7 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     if ev.errors:  # metrics that raised: the job is ok, those values are missing
         record["metric_errors"] = ev.errors
     _sheet_files(job, mesh, reference, ev.images, result)
+    _mesh_files(job, mesh, simplified.mesh, result)
 
 
 def evaluate_result(original, result, protocol, reference_images=None):
@@ -330,6 +334,53 @@ def _sheet_files(job: Job, mesh, reference, images, result: JobResult) -> None:
     result.shared_files.update(_ORIGINAL_SHEETS[original])
     for v in SHEET_VIEWS:
         result.files[f"images/{job.key}/view{v:02d}.png"] = _png(images[v])
+
+
+def mesh_paths(key: str, model_hash: str) -> tuple[str, str]:
+    """Where a job's evaluated mesh and its original lie in the run folder, as GLB:
+    ``meshes/<job key>.glb`` and ``meshes/original__<hash12>.glb`` (one per model, named
+    by its content hash as the original's views are)."""
+    return f"meshes/{key}.glb", f"meshes/original__{model_hash[:12]}.glb"
+
+
+_ORIGINAL_MESHES: dict[str, bytes | str] = {}
+
+
+def _mesh_files(job: Job, original, simplified, result: JobResult) -> None:
+    """The job's evaluated mesh (a view-dependent method's view-independent one) as a
+    GLB file, and the original's once per model (encoded once per process), each with
+    the normals the evaluation's Gouraud shading uses. A mesh that GLB cannot hold
+    (coordinates beyond 32-bit floats) leaves the job ok, without that file, and the
+    reason in the record's ``mesh_file_error``."""
+    mine, theirs = mesh_paths(job.key, original.content_hash)
+    if theirs not in _ORIGINAL_MESHES:
+        _ORIGINAL_MESHES[theirs] = _glb(original, "original")
+    data = _glb(simplified, "lod")
+    errors = []
+    for path, made, files in ((theirs, _ORIGINAL_MESHES[theirs], result.shared_files),
+                              (mine, data, result.files)):
+        if isinstance(made, bytes):
+            files[path] = made
+        else:
+            errors.append(f"{path}: {made}")
+    if errors:
+        result.record["mesh_file_error"] = "; ".join(errors)
+
+
+def _glb(mesh, name: str) -> bytes | str:
+    """``mesh`` as GLB bytes with the evaluation's vertex normals, or why not (one
+    line)."""
+    import warnings
+
+    from bench.io.meshio import glb_bytes
+
+    try:
+        with warnings.catch_warnings():  # a face or two collapsing in 32-bit floats
+            warnings.simplefilter("ignore")
+            return glb_bytes(mesh.replace(normals=mesh.vertex_normals), name)
+    except Exception as exc:  # noqa: BLE001 (the job's figures stand; the record says why)
+        return " ".join(f"{type(exc).__name__}: {exc}".split()) \
+            if not isinstance(exc, BenchError) else " ".join(str(exc).split())
 
 
 def _artifact_files(job: Job, artifacts: dict, files: dict[str, bytes]) -> list[str]:

@@ -39,10 +39,11 @@ from bench.harness.report_images import Inline, RunFiles, Shown, difference_png,
 from bench.harness.report_table import SCRIPT, summary_html
 from bench.harness.report_table import cell as _cell
 from bench.harness.report_table import esc as _esc
+from bench.harness.report_viewer import VIEWER_SCRIPT, Viewers, single_file_note
 from bench.harness.results import load_records, records_table, shading_label, write_atomic
 
-__all__ = ["PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_page", "plot_text", "pyplot",
-           "write_report"]
+__all__ = ["ERRORS_SCRIPT", "PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_page",
+           "plot_text", "pyplot", "write_report"]
 
 #: Above this many jobs the report is one page per model, linked from index.html, so no
 #: page holds more than one model's images.
@@ -70,7 +71,34 @@ pre{background:#f7f7f7;padding:.5em;white-space:pre-wrap;font-size:.8em}
 .grid img{width:128px;height:128px}.grid td{text-align:center;font-size:.8em}
 .grid .diff{display:none}.grid.show-diff .diff{display:inline}
 .grid.show-diff .view{display:none}
+.v3d-stage{position:relative;max-width:1120px;background:#808080;min-height:2px}
+.v3d-stage canvas{display:block}
+.v3d-stage span{position:absolute;top:4px;color:#fff;font-size:.8em;text-shadow:0 0 2px #000}
+.v3d-left{left:6px}.v3d-right{left:calc(50% + 6px)}.v3d-controls{margin:.5em 0}
+#script-errors{color:#900}
 """
+
+#: In every page's head: an error of any script (or a promise nobody handled) is shown
+#: as text at the top of the page, never a silently blank part.
+ERRORS_SCRIPT = """<script>/* bench report: script errors shown in the page */
+(function () {
+  function show(text) {
+    var box = document.getElementById("script-errors");
+    if (!box) {
+      box = document.createElement("pre");
+      box.id = "script-errors";
+      document.body.insertBefore(box, document.body.firstChild);
+    }
+    box.textContent += "script error: " + text + "\n";
+  }
+  window.addEventListener("error", function (e) {
+    show(e.message + (e.filename ? " (" + e.filename + ":" + e.lineno + ")" : ""));
+  });
+  window.addEventListener("unhandledrejection", function (e) {
+    show(String(e.reason && e.reason.message || e.reason));
+  });
+})();
+</script>"""
 
 #: Summary-table columns left out when no record of the run defines them.
 _OPTIONAL_COLUMNS = ("exterior_share",)
@@ -94,13 +122,14 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
         records = load_records(run_dir, skipped=notes)
         for note in notes[before:]:
             warnings.warn(note, RecordWarning, stacklevel=2)
-    refused = []  # images left out of the sheets, with why
+    refused = []  # images and meshes left out of the sheets and 3D views, with why
     out = Inline() if single_file else RunFiles(run_dir, refused)
+    viewers = None if single_file else Viewers(run_dir, out, refused)
     table = records_table(records)
     models = list(dict.fromkeys(table.model))
     slugs = _slugs(models)
     split = not single_file and len(records) > PAGE_LIMIT
-    sections = {m: _model_section(run_dir, m, records, table, out, refused, slugs[m])
+    sections = {m: _model_section(run_dir, m, records, table, out, refused, slugs[m], viewers)
                 for m in models}
     for note in refused:
         warnings.warn(note, RecordWarning, stacklevel=2)
@@ -116,15 +145,22 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
                 "<h2>Timing</h2>", _timing(records), "<h2>Failures</h2>", _failures(records)]
     page = html_page(f"bench report: {_esc(run_dir.name)}",
                      [f"<h1>Simplification benchmark: {_esc(run_dir.name)}</h1>",
-                      _warnings_html(notes + refused), _protocol_note(records), *body])
+                      _warnings_html(notes + refused), _protocol_note(records), *body],
+                     _viewer_scripts(body))
     return write_atomic(run_dir / "index.html", page)
 
 
-def html_page(title: str, parts: list[str]) -> str:
-    """A whole HTML page: ``title`` and ``parts`` are HTML already."""
+def html_page(title: str, parts: list[str], scripts: list[str] | tuple = ()) -> str:
+    """A whole HTML page: ``title``, ``parts`` and ``scripts`` (after the report's own)
+    are HTML already."""
     head = (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title>"
-            f"<style>{_CSS}</style></head><body>")
-    return "\n".join([head, *parts, SCRIPT, GRID_SCRIPT, "</body></html>"])
+            f"<style>{_CSS}</style>{ERRORS_SCRIPT}</head><body>")
+    return "\n".join([head, *parts, SCRIPT, GRID_SCRIPT, *scripts, "</body></html>"])
+
+
+def _viewer_scripts(parts: list[str]) -> list[str]:
+    """The 3D view's script, for a page whose ``parts`` hold a 3D view."""
+    return [VIEWER_SCRIPT] if any("<div class='viewer3d'" in p for p in parts) else []
 
 
 def _model_page(run_dir: Path, model: str, section: list[str], records: list[dict]) -> str:
@@ -134,7 +170,8 @@ def _model_page(run_dir: Path, model: str, section: list[str], records: list[dic
                      [f"<p><a href='index.html'>← summary of {_esc(run_dir.name)}</a></p>",
                       f"<h1>Simplification benchmark: {_esc(run_dir.name)}, {_esc(model)}</h1>",
                       _protocol_note(own), *section,
-                      "<h2>Timing</h2>", _timing(own)])
+                      "<h2>Timing</h2>", _timing(own)],
+                     _viewer_scripts(section))
 
 
 def _model_list(models: list[str], links: dict[str, str], table) -> str:
@@ -150,16 +187,22 @@ def _model_list(models: list[str], links: dict[str, str], table) -> str:
 
 
 def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
-                   refused: list[str], slug: str) -> list[str]:
-    """A model's heading, plots, exterior table, silhouette histograms, comparison grids
-    and sheets."""
+                   refused: list[str], slug: str, viewers: Viewers | None) -> list[str]:
+    """A model's heading, plots, exterior table, silhouette histograms, comparison grids,
+    3D view (a note instead with ``viewers`` None: ``--single-file``) and sheets."""
     own = [r for r in records if r["job"]["model"] == model]
     ok = table[(table.model == model) & (table.status == "ok")]
     images = {id(r): sheet_images(run_dir, r, refused, out)  # by record: a key may be
               for r in own if r["status"] == "ok"}            # missing in an older run
+    if viewers is None:
+        view = single_file_note(own)
+    else:
+        keys = {id(r): _image_folders(run_dir, r)[0] for r in own if r["status"] == "ok"}
+        view = viewers.section(own, keys, slug, len(_shadings(own)) > 1)
     return [f"<h2 id='m-{slug}'>{_esc(model)}</h2>", _plots(ok, out, slug),
             _exterior_table(ok), _silhouette_plot(own, out, slug),
-            comparison_grids(own, images, slug), _sheets(run_dir, own, refused, out, images)]
+            comparison_grids(own, images, slug), view,
+            _sheets(run_dir, own, refused, out, images)]
 
 
 def _slugs(models: list[str]) -> dict[str, str]:

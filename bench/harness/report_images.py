@@ -25,7 +25,8 @@ import numpy as np
 
 from bench.harness.results import write_atomic
 
-__all__ = ["THUMB_QUALITY", "THUMB_SIZE", "Inline", "Png", "RunFiles", "Shown", "run_png"]
+__all__ = ["THUMB_QUALITY", "THUMB_SIZE", "Inline", "Png", "RunFiles", "Shown", "run_file",
+           "run_png"]
 
 #: The first bytes of every PNG file.
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -67,9 +68,29 @@ def run_png(run_dir: Path, relative, refused: list[str] | None = None,
     signature or is over :data:`MAX_IMAGE_BYTES`. A file that is simply absent is None
     (and a reason only for ``what``-named images a record promised).
     """
+    found = run_file(run_dir, relative, refused, what or "image", ".png", MAX_IMAGE_BYTES,
+                     missing=bool(what))
+    if found is None:
+        return None
+    data, path = found
+    if not data.startswith(PNG_SIGNATURE):
+        if refused is not None:
+            refused.append(f"{what or 'image'} {str(relative)!r}: not a PNG file; not shown")
+        return None
+    return Png(data, path)
+
+
+def run_file(run_dir: Path, relative, refused: list[str] | None, what: str, suffix: str,
+             max_bytes: int, missing: bool = False) -> tuple[bytes, str] | None:
+    """The bytes of the file ``run_dir/relative`` and its path relative to the resolved
+    run folder, or None: refused (with a reason in ``refused``, naming it ``what``) when
+    the name is not a relative string, the path leaves the run folder (``..``, an
+    absolute path, a link to elsewhere), its name does not end in ``suffix`` or the
+    file is over ``max_bytes``; a file that is simply absent is None, with a reason
+    only when ``missing``."""
     def refuse(why: str) -> None:
         if refused is not None:
-            refused.append(f"{what or 'image'} {str(relative)!r}: {why}; not shown")
+            refused.append(f"{what} {str(relative)!r}: {why}; not shown")
 
     if not isinstance(relative, (str, Path)) or not str(relative):
         refuse("not a file name")
@@ -84,25 +105,22 @@ def run_png(run_dir: Path, relative, refused: list[str] | None = None,
     if Path(relative).is_absolute() or not resolved.is_relative_to(root):
         refuse("outside the run folder")
         return None
-    if resolved.suffix.lower() != ".png":
-        refuse("not a .png file")
+    if not resolved.name.lower().endswith(suffix) or resolved.name == suffix:
+        refuse(f"not a {suffix} file")
         return None
     try:
         if not resolved.is_file():
-            if what:
+            if missing:
                 refuse("no such file in the run folder")
             return None
-        if resolved.stat().st_size > MAX_IMAGE_BYTES:
-            refuse(f"larger than {MAX_IMAGE_BYTES >> 20} MB")
+        if resolved.stat().st_size > max_bytes:
+            refuse(f"larger than {max_bytes >> 20} MB")
             return None
         data = resolved.read_bytes()
     except OSError as exc:
         refuse(f"unreadable ({exc.strerror or exc})")
         return None
-    if not data.startswith(PNG_SIGNATURE):
-        refuse("not a PNG file")
-        return None
-    return Png(data, resolved.relative_to(root).as_posix())
+    return data, resolved.relative_to(root).as_posix()
 
 
 def _decode(data: bytes):
@@ -226,6 +244,12 @@ class RunFiles:
     @staticmethod
     def _thumb_path(path: str) -> str:
         return "images/thumbs/" + str(Path(_under_images(path)).with_suffix(".jpg"))
+
+    def file(self, relative: str, data: bytes) -> str:
+        """Write ``data`` as the run folder's file ``relative`` (a name the report makes,
+        never a record's string); its URL, or "" when it could not be written (the
+        reason is in ``refused``)."""
+        return _url(relative) if self._write(relative, data) else ""
 
     def _write(self, relative: str, data: bytes) -> bool:
         """Write ``data`` to ``root/relative`` (atomically), unless a link in the run

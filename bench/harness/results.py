@@ -287,6 +287,7 @@ _PARTS = {
     "artifacts": lambda v: None if isinstance(v, list) else f"must be a list, got {_kind(v)}",
     "metric_errors": _strings,
     "stop_reason": lambda v: None if isinstance(v, str) else f"must be a string, got {_kind(v)}",
+    "mesh_file_error": lambda v: None if isinstance(v, str) else f"must be a string, got {_kind(v)}",
 }
 #: What the report shows of every ok job.
 _NEEDED_IF_OK = ("model", "metrics")

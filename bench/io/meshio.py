@@ -54,8 +54,8 @@ from bench.io.atlas import split_materials
 from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
 from bench.mesh import Mesh
 
-__all__ = ["FORMATS", "SCENE_FORMATS", "check_not_inputs", "check_output_path", "input_files",
-           "load_mesh", "lod_path", "save_lods", "save_mesh"]
+__all__ = ["FORMATS", "SCENE_FORMATS", "check_not_inputs", "check_output_path", "glb_bytes",
+           "input_files", "load_mesh", "lod_path", "save_lods", "save_mesh"]
 
 #: Supported file extensions and what they keep.
 FORMATS = {
@@ -161,6 +161,16 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, inputs: list | None = None
     """
     path = check_output_path(path)
     return _commit(_mesh_files(mesh, path), inputs, force)
+
+
+def glb_bytes(mesh: Mesh, name: str = "mesh") -> bytes:
+    """``mesh`` as a binary glTF file (GLB), in memory, exactly as :func:`save_mesh`
+    writes ``<name>.glb``: positions, UVs, normals and colours, its texture embedded
+    (or one primitive per material, each with its own texture). The run writes its
+    meshes this way for the report's 3D view. Raises InputError where :func:`save_mesh`
+    would (coordinates beyond 32-bit floats, UVs out of range)."""
+    (_, data), = _mesh_files(mesh, Path(f"{name}.glb"))
+    return data
 
 
 def _mesh_files(mesh: Mesh, path: Path) -> list[tuple[Path, bytes]]:
