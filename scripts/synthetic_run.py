@@ -2,9 +2,9 @@
 
     python scripts/synthetic_run.py SOURCE_RUN DEST --jobs 500 --models 10
 
-Every record of SOURCE_RUN is copied again and again, with its images, until DEST holds
-at least ``--jobs`` records: copy k goes to model ``<model>-m<k mod models>`` (a model
-hash of its own, so each model has its own original's views) and, after the first
+Every record of SOURCE_RUN is copied again and again, with its images and meshes, until
+DEST holds at least ``--jobs`` records: copy k goes to model ``<model>-m<k mod models>``
+(a model hash of its own, so each model has its own original's views) and, after the first
 round, to the method label ``<label>-c<k div models>``; job keys and file names follow.
 Nothing is simplified or rendered: the figures are the source's.
 """
@@ -35,7 +35,8 @@ def synthesise(source: Path, dest: Path, jobs: int, models: int) -> int:
 
 
 def _copy(source: Path, dest: Path, stem: str, record: dict, model: int, copy: int) -> None:
-    """One copy of ``record`` (filed as ``stem``.json, its job key) and its images."""
+    """One copy of ``record`` (filed as ``stem``.json, its job key), its images and its
+    meshes."""
     job = record["job"]
     old_key = job.get("key") or stem
     old_hash = (record.get("model") or {}).get("hash")
@@ -52,14 +53,23 @@ def _copy(source: Path, dest: Path, stem: str, record: dict, model: int, copy: i
     r["artifacts"] = [a.replace(old_key, key) for a in record.get("artifacts") or []]
     (dest / "records" / f"{key}.json").write_text(json.dumps(r))
     _copy_folder(source / "images" / old_key, dest / "images" / key)
+    _copy_file(source / "meshes" / f"{old_key}.glb", dest / "meshes" / f"{key}.glb")
     if old_hash:
         _copy_folder(source / "images" / f"original__{old_hash[:12]}__{shading}",
                      dest / "images" / f"original__{new_hash[:12]}__{shading}")
+        _copy_file(source / "meshes" / f"original__{old_hash[:12]}.glb",
+                   dest / "meshes" / f"original__{new_hash[:12]}.glb")
 
 
 def _copy_folder(src: Path, dst: Path) -> None:
     if src.is_dir() and not dst.exists():
         shutil.copytree(src, dst)
+
+
+def _copy_file(src: Path, dst: Path) -> None:
+    if src.is_file() and not dst.exists():
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(src, dst)
 
 
 def main() -> None:

@@ -237,7 +237,7 @@ def test_any_damaged_field_is_refused_at_load_or_harmless_after(tmp_path):
     from bench.harness.results import load_record, records_table
 
     base = record(artifacts=["images/a.png"], metric_errors={"flip": "boom"},
-                  stop_reason=None, seconds={"render": 1.0},
+                  stop_reason=None, seconds={"render": 1.0}, mesh_file_error="too big",
                   environment={"git_commit": "abc", "machine": {"processor": "cpu"}})
     base["metrics"]["exterior_share"] = 0.5
     accepted, refused = [], 0
