@@ -1,7 +1,8 @@
 """The report as a browser shows it: headless Chromium opens index.html from disk
 (file://), and the DOM it built is checked — the tables are there, every image and link
-points at a file inside the run folder, the sorting script runs — and a screenshot is
-kept in the test's folder.
+points at a file inside the run folder, the sorting script runs, the 3D view draws the
+LOD it was asked for with WebGL (SwiftShader, Chromium's software renderer: no GPU
+here) and no script fails — and screenshots are kept in the test's folder.
 
 One small real run is shared by the module: a 320-face icosphere simplified by qslim at
 two budgets, and by a plug-in that raises (tests/plugins/misbehaving.py), so the summary
@@ -45,6 +46,19 @@ def _bench(*args, cwd) -> subprocess.CompletedProcess:
 
 def _chromium(profile: Path, *args: str) -> subprocess.CompletedProcess:
     return subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu",
+                           "--disable-quic", "--no-first-run", "--disable-background-networking",
+                           "--disable-component-update", "--disable-sync",
+                           f"--user-data-dir={profile}", *args],
+                          capture_output=True, text=True, timeout=120, check=True)
+
+
+#: WebGL on Chromium's software renderer, asked for explicitly (its automatic fallback
+#: is deprecated); without --disable-gpu, which the 3D view must not be given.
+WEBGL = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader")
+
+
+def _chromium_webgl(profile: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["chromium", "--headless", "--no-sandbox", *WEBGL,
                            "--disable-quic", "--no-first-run", "--disable-background-networking",
                            "--disable-component-update", "--disable-sync",
                            f"--user-data-dir={profile}", *args],
@@ -176,6 +190,9 @@ def test_a_big_run_has_a_page_per_model(run, tmp_path):
         folders = [unquote(a["src"]).split("/")[-2] for a in dom.all("img")
                    if "/thumbs/" in a["src"] and "original__" not in a["src"]]
         shown[page.name] = {f.split("__")[0] for f in folders}
+        assert _viewer(dom)["data-status"] == "closed"  # its model's 3D view: its meshes
+        lods = [unquote(o["data-lod"]) for o in dom.all("option") if "data-lod" in o]
+        assert lods and {p.split("/")[-1].split("__")[0] for p in lods} == shown[page.name]
     assert all(len(models) == 1 for models in shown.values()), shown
     assert len(set.union(*shown.values())) == 3
 
@@ -209,3 +226,82 @@ def test_a_comparison_grid_puts_the_methods_side_by_side(tmp_path):
     shot = tmp_path / "grid.png"
     _chromium(tmp_path / "profile", "--window-size=1400,2400", f"--screenshot={shot}",
               page.as_uri())
+
+
+def _viewer(dom: _Dom) -> dict:
+    views = [a for a in dom.all("div") if a.get("class") == "viewer3d"]
+    assert len(views) == 1, views
+    return views[0]
+
+
+def test_the_3d_view_draws_the_chosen_lod_from_disk(run, tmp_path):
+    """``#view3d=<model>&lod=1`` opens the model's view on its second LOD (60 faces
+    asked): three.js and both GLBs load from the folder, WebGL draws them, and the page
+    reports the triangles it drew — the record's face count — with no script error."""
+    import json
+
+    records = [json.loads(p.read_text()) for p in (run / "records").glob("*.json")]
+    faces = {r["job"]["target_faces"]: r["metrics"]["faces"] for r in records
+             if r["status"] == "ok"}
+    page = run / "index.html"
+    closed = _viewer(_Dom(_dump(page, tmp_path / "profile")))
+    assert closed["data-status"] == "closed"
+    lods = [o for o in _Dom(page.read_text()).all("option") if "data-lod" in o]
+    assert [int(o["data-faces"]) for o in lods] == [faces[100], faces[60]]
+    for option in lods:  # every file the view may load lies in the run folder
+        for name in ("data-lod", "data-original", "data-lod-glb", "data-original-glb"):
+            assert _target(run, page, option[name]).is_file()
+    assert _target(run, page, closed["data-three"]).is_file()
+
+    fragment = f"#view3d={closed['data-model']}&lod=1"
+    text = _chromium_webgl(tmp_path / "profile", "--virtual-time-budget=30000", "--dump-dom",
+                           page.as_uri() + fragment).stdout
+    dom = _Dom(text)
+    view = _viewer(dom)
+    assert view["data-status"] == "ready", text[text.index("v3d-status"):][:400]
+    assert int(view["data-faces"]) == faces[60]
+    assert int(view["data-original-faces"]) == 320
+    assert len(dom.all("canvas")) == 1
+    assert not [a for a in dom.all("pre") if a.get("id") == "script-errors"]
+    assert "triangles drawn" in text
+    assert _broken(run, page, dom) == []  # the GLB download links too
+
+    # the whole page in one window (headless Chromium's screenshot of a page scrolled to
+    # the view came out blank), then the view cut out of it
+    shot = tmp_path / "page-with-3d-view.png"
+    _chromium_webgl(tmp_path / "profile", "--virtual-time-budget=30000",
+                    "--window-size=1200,6000", f"--screenshot={shot}", page.as_uri() + fragment)
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+    gray = (np.abs(pixels - 128) <= 1).all(axis=2)  # the protocol's background
+    rows = np.flatnonzero(gray.mean(axis=1) > 0.3)  # the canvas's rows (the first run
+    rows = rows[:np.argmax(np.diff(rows, append=rows[-1] + 2) > 1) + 1]  # of them) ...
+    assert rows.size > 200
+    columns = np.flatnonzero(gray[rows].mean(axis=0) > 0.3)  # ... and columns
+    view = pixels[rows[0]:rows[-1] + 1, columns[0]:columns[-1] + 1]
+    Image.fromarray(view.astype(np.uint8)).save(tmp_path / "viewer.png")
+    half = view.shape[1] // 2
+    for side in (view[:, :half], view[:, half:]):  # a lit grey sphere in each viewport
+        lit = ~(np.abs(side - 128) <= 1).all(axis=2) & (side.std(axis=2) < 8)
+        assert lit.mean() > 0.05
+
+
+@pytest.mark.parametrize("broken", ["no three.js", "no WebGL"])
+def test_the_3d_view_says_why_it_cannot_draw(run, tmp_path, broken):
+    """A missing library or a browser without WebGL: the reason in the page, as text."""
+    folder = tmp_path / "run"
+    shutil.copytree(run, folder)
+    flags = ["--disable-webgl", "--disable-3d-apis"] if broken == "no WebGL" else []
+    if broken == "no three.js":
+        (folder / "vendor" / "three.min.js").unlink()
+    page = folder / "index.html"
+    model = _viewer(_Dom(page.read_text()))["data-model"]
+    text = _chromium_webgl(tmp_path / "profile", *flags, "--virtual-time-budget=20000",
+                           "--dump-dom", page.as_uri() + f"#view3d={model}").stdout
+    view = _viewer(_Dom(text))
+    assert view["data-status"] == "error"
+    status = text[text.index("v3d-status"):][:300]
+    why = "cannot load vendor/three.min.js" if broken == "no three.js" else \
+        "WebGL is not available in this browser"
+    assert why in status, status

@@ -4,21 +4,25 @@ jobs one page per model (``DIR/model-<slug>.html``) linked from it.
 Sections follow Lindstrom & Turk 2000: a summary table (sortable and filterable,
 :mod:`bench.harness.report_table`), per model the d_RMS and Hausdorff curves over face
 count (Figures 5 and 6), silhouette histograms (Figure 7), comparison grids of the
-methods side by side (:mod:`bench.harness.report_grid`), image sheets with difference
-images (Plate 13), a timing table (Table 1), and the failures with their errors.
+methods side by side (:mod:`bench.harness.report_grid`), a 3D view of the original and
+any LOD orbited together (:mod:`bench.harness.report_viewer`), image sheets with
+difference images (Plate 13), a timing table (Table 1), and the failures with their
+errors. Every page catches its scripts' errors and shows them at its top.
 
 Images are files of the run folder linked by relative URLs (thumbnails linking to the
 full PNGs, plots as SVG; :mod:`bench.harness.report_images`), so the folder opens from
 disk with no server and can be zipped or published as it is; ``single_file=True``
-(``--single-file``) inlines every image as base64 instead, in one page.
+(``--single-file``) inlines every image as base64 instead, in one page, and leaves the
+3D view out with a note (it needs the run folder's meshes and three.js as files).
 
 A run folder may come from someone else, so nothing in it is trusted: every string from
 a record is HTML-escaped where it is written, only records that pass
 :func:`~bench.harness.results.record_problem` are shown, and images are read only from
 inside the run folder and only when they are PNG files
-(:func:`~bench.harness.report_images.run_png`). What is left out for any of these
-reasons is listed under "Warnings" at the top of the report and given as a
-:class:`~bench.errors.RecordWarning`.
+(:func:`~bench.harness.report_images.run_png`), meshes likewise and only as whole,
+self-contained GLB files (:func:`~bench.harness.report_viewer.run_glb`). What is left
+out for any of these reasons is listed under "Warnings" at the top of the report and
+given as a :class:`~bench.errors.RecordWarning`.
 """
 
 from __future__ import annotations
@@ -75,6 +79,8 @@ pre{background:#f7f7f7;padding:.5em;white-space:pre-wrap;font-size:.8em}
 .v3d-stage canvas{display:block}
 .v3d-stage span{position:absolute;top:4px;color:#fff;font-size:.8em;text-shadow:0 0 2px #000}
 .v3d-left{left:6px}.v3d-right{left:calc(50% + 6px)}.v3d-controls{margin:.5em 0}
+.v3d-stage::after{content:"";position:absolute;top:0;bottom:0;left:calc(50% - 1px);
+border-left:2px solid #fff}
 #script-errors{color:#900}
 """
 

@@ -21,9 +21,9 @@ diffuse 0.9, white unless textured), two-sided, a point light at the eye and a 5
 gray background as the protocol renders; flat (face normals) or smooth shading (the
 vertex normals the evaluation's Gouraud shading uses, written into the GLB),
 textured or not, a wireframe overlay. A view starts on a click, or on opening the page
-with ``#view3d=<model slug>`` (``&lod=N`` picks the Nth entry, ``&shading=smooth`` and
-``&wireframe`` set those); opening one closes any other, so a page holds one WebGL
-context at most. It writes what it shows into
+with ``#view3d=<model slug>`` (scrolled into view; ``&lod=N`` picks the Nth entry,
+``&shading=smooth`` and ``&wireframe`` set those); opening one closes any other, so a
+page holds one WebGL context at most. It writes what it shows into
 attributes of its ``div.viewer3d`` (``data-status`` loading/ready/error,
 ``data-faces`` and ``data-original-faces``, the triangles drawn) and every failure —
 WebGL unavailable, a file missing — as text in the page.
@@ -375,7 +375,7 @@ VIEWER_SCRIPT = """<script>/* bench report: 3D view of the LODs */
         self.scenes[i].add(m.object);
         self.shown[i] = m;
       });
-      if (refit) self.fit(both[0].object);
+      if (refit) self.fit(both[0]);
       self.texture.disabled = !(both[0].textured || both[1].textured);
       self.restyle();
       self.draw();
@@ -399,11 +399,17 @@ VIEWER_SCRIPT = """<script>/* bench report: 3D view of the LODs */
       c.appendChild(a);
     });
   };
-  Viewer.prototype.fit = function (object) {
-    var sphere = new THREE.Box3().setFromObject(object).getBoundingSphere(new THREE.Sphere());
-    var r = sphere.radius || 1, c = sphere.center;
+  Viewer.prototype.fit = function (shown) {  /* the protocol's framing: at 2r from the centre */
+    var c = new THREE.Box3().setFromObject(shown.object).getCenter(new THREE.Vector3());
+    var r = 0, p = new THREE.Vector3();
+    shown.parts.forEach(function (o) {
+      var a = o.geometry.getAttribute("position");
+      o.updateWorldMatrix(true, false);
+      for (var i = 0; i < a.count; i++) r = Math.max(r, p.fromBufferAttribute(a, i).applyMatrix4(o.matrixWorld).distanceTo(c));
+    });
+    r = r || 1;
     this.camera.near = r * 0.02; this.camera.far = r * 20;
-    this.camera.position.copy(c).add(new THREE.Vector3(0.6, 0.45, 1).normalize().multiplyScalar(2.2 * r));
+    this.camera.position.copy(c).add(new THREE.Vector3(0.6, 0.45, 1).normalize().multiplyScalar(2 * r));
     this.camera.updateProjectionMatrix();
     this.controls.target.copy(c);
     this.controls.update();
@@ -461,6 +467,7 @@ VIEWER_SCRIPT = """<script>/* bench report: 3D view of the LODs */
     var shading = /shading=(flat|smooth)/.exec(location.hash);
     if (shading) chosen.shading.value = shading[1];
     if (/wireframe/.test(location.hash)) chosen.wire.checked = true;
+    chosen.root.scrollIntoView();
     chosen.open();
   }
 })();
