@@ -399,7 +399,7 @@ VIEWER_SCRIPT = """<script>/* bench report: 3D view of the LODs */
       c.appendChild(a);
     });
   };
-  Viewer.prototype.fit = function (shown) {  /* the protocol's framing: at 2r from the centre */
+  Viewer.prototype.fit = function (shown) {  /* the original's bounding sphere fills 90 % of the height */
     var c = new THREE.Box3().setFromObject(shown.object).getCenter(new THREE.Vector3());
     var r = 0, p = new THREE.Vector3();
     shown.parts.forEach(function (o) {
@@ -409,7 +409,7 @@ VIEWER_SCRIPT = """<script>/* bench report: 3D view of the LODs */
     });
     r = r || 1;
     this.camera.near = r * 0.02; this.camera.far = r * 20;
-    this.camera.position.copy(c).add(new THREE.Vector3(0.6, 0.45, 1).normalize().multiplyScalar(2 * r));
+    this.camera.position.copy(c).add(new THREE.Vector3(0.6, 0.45, 1).normalize().multiplyScalar(2.2 * r));
     this.camera.updateProjectionMatrix();
     this.controls.target.copy(c);
     this.controls.update();
