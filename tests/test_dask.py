@@ -98,6 +98,12 @@ def test_local_pool_and_dask_give_identical_records(ico, tmp_path):
     assert len(images) == 4 + 2 * 4  # the original's 4 sheet views, then 4 per job
     for name in images:
         assert (tmp_path / "dask" / name).read_bytes() == (tmp_path / "local" / name).read_bytes()
+    # ... and the meshes (GLB) for the 3D view: the original's once, then one per job
+    meshes = sorted(p.relative_to(tmp_path / "local")
+                    for p in (tmp_path / "local" / "meshes").rglob("*.glb"))
+    assert len(meshes) == 1 + 2
+    for name in meshes:
+        assert (tmp_path / "dask" / name).read_bytes() == (tmp_path / "local" / name).read_bytes()
     assert not list((tmp_path / "dask").rglob("*.tmp"))  # atomic writes left nothing behind
 
 

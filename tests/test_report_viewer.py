@@ -236,3 +236,19 @@ def test_a_run_without_meshes_says_so(tmp_path):
     assert "No 3D meshes for this model" in page and VIEWER_SCRIPT not in page
     assert not (run / "vendor").exists()
     assert len(load_records(run)) == 1
+
+
+def test_wrappers_are_not_written_through_a_link_out_of_the_run_folder(tmp_path):
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    digest = "45" * 20
+    r = _lod_record("q", 80, digest)
+    run = _run(tmp_path, [r], {"meshes/q-80.glb": _glb(icosphere(1)),
+                               f"meshes/original__{digest[:12]}.glb": _glb(icosphere(1))})
+    (run / "meshes" / "js").symlink_to(outside)
+    with pytest.warns(Warning, match="its folder leaves the run folder"):
+        write_report(run)
+    assert list(outside.iterdir()) == []
+    page = (run / "index.html").read_text()
+    assert "&#x27;meshes/js/q-80.glb.js&#x27;: its folder leaves the run folder" in page
+    assert "No 3D meshes for this model" in page
