@@ -201,7 +201,7 @@ class Viewers:
                 missing += 1
                 why = r.get("mesh_file_error") if isinstance(r.get("mesh_file_error"), str) \
                     else "no mesh file in the run folder"
-                options.append((False, f"<option disabled>{esc(text)}: {esc(why)}</option>"))
+                options.append(f"<option disabled>{esc(text)}: {esc(why)}</option>")
                 continue
             attrs = {"lod": lod[0], "lod-id": lod[1], "lod-glb": _quote(mine),
                      "original": original[0], "original-id": original[1],
@@ -210,7 +210,7 @@ class Viewers:
                      "shading": "flat" if shading.startswith("flat") else "smooth"}
             data = "".join(f" data-{k}='{esc(v)}'" for k, v in attrs.items())
             selected = " selected" if len(options) == missing else ""  # the first usable
-            options.append((True, f"<option{selected}{data}>{esc(text)}</option>"))
+            options.append(f"<option{selected}{data}>{esc(text)}</option>")
         if missing == len(ok):
             return ("<h3>3D view</h3><p class='note'>No 3D meshes for this model in the run "
                     "folder (a run made before <code>bench run</code> wrote "
@@ -223,7 +223,7 @@ class Viewers:
             f"<h3>3D view</h3><div class='viewer3d' id='view3d-{slug}' data-model='{slug}' "
             f"data-three='{three}' data-status='closed'>"
             "<div class='v3d-controls'><button type='button' class='v3d-open'>show in 3D"
-            "</button> <label>LOD <select class='v3d-lod'>" + "".join(o for _, o in options) +
+            "</button> <label>LOD <select class='v3d-lod'>" + "".join(options) +
             "</select></label> <label>shading <select class='v3d-shading'>"
             "<option value='flat'>flat</option><option value='smooth'>smooth</option>"
             "</select></label> <label><input type='checkbox' class='v3d-texture' checked> "
