@@ -99,6 +99,15 @@ def test_record_contents(run):
     assert r["environment"]["versions"]["pymeshlab"]
     assert r["stats"]["tri_per_s"] > 0
     assert r["stats"]["compile_seconds"] >= 0  # the warm-up, apart from wall_seconds
+    # the evaluated mesh and the original as GLB, for the report's 3D view; none for a
+    # failed job
+    meshes = root / "out" / "meshes"
+    assert (meshes / f"{r['job']['key']}.glb").is_file()
+    assert (meshes / f"original__{r['model']['hash'][:12]}.glb").is_file()
+    assert sorted(p.name for p in meshes.glob("*.glb")) == sorted(
+        [f"original__{r['model']['hash'][:12]}.glb"] +
+        [f"{x['job']['key']}.glb" for x in _records(root / "out").values()
+         if x["status"] == "ok"])
 
 
 def test_results_csv_and_report(run):
