@@ -1,14 +1,17 @@
 """The images of the report: which files of a run folder it may show, and how.
 
 Images are read only from inside the run folder and only when they are PNG files
-(:func:`run_png`). The report then shows them one of two ways:
+(:func:`run_png`; :func:`run_file` is the check of place, name and size it shares with
+the 3D view's meshes). The report then shows them one of two ways:
 
 - :class:`RunFiles` (the default): as files of the run folder, linked by relative URLs,
   so the folder opens from disk with no server and can be zipped or published as it is.
   A sheet shows a thumbnail (:data:`THUMB_SIZE`² JPEG at quality :data:`THUMB_QUALITY`,
   in ``images/thumbs/``) that links to the full PNG; difference images are written to
   ``images/diff/`` and plots as SVG to ``images/plots/``. Thumbnails are made only from
-  PNGs that :func:`run_png` accepts, and nothing is written outside the run folder.
+  PNGs that :func:`run_png` accepts, and nothing is written outside the run folder
+  (:meth:`RunFiles.file` writes the report's other files, such as the 3D view's, the
+  same way).
 - :class:`Inline` (``--single-file``): every image a base64 data URI in the page, as one
   self-contained file for small runs.
 """
