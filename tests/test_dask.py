@@ -21,6 +21,7 @@ import threading
 import time
 from pathlib import Path
 
+import numba
 import pytest
 
 from bench.harness.jobs import Job, JobResult, store_result
@@ -77,7 +78,7 @@ def test_local_pool_and_dask_give_identical_records(ico, tmp_path):
     jobs = [Job(ico, "qslim", faces, {}, SMALL) for faces in (100, 60)]
     execute(jobs, tmp_path / "local", workers=1, timeout=300, progress=False)
     records = execute(jobs, tmp_path / "dask", workers=2, timeout=300, progress=False,
-                      executor="dask")
+                      executor="dask", threads=1)
     assert len(records) == 2
     local, dask = _records(tmp_path / "local"), _records(tmp_path / "dask")
     assert sorted(local) == sorted(dask) == sorted(j.key for j in jobs)
@@ -89,6 +90,10 @@ def test_local_pool_and_dask_give_identical_records(ico, tmp_path):
         assert a["silhouette_histogram"] == b["silhouette_histogram"]
         assert a["model"] == b["model"]
         assert a["environment"]["worker"]["executor"] == "local"
+        # one job process: all the cores (numba's pool, at most); on Dask as told
+        assert a["environment"]["worker"]["threads"] == min(os.cpu_count() or 1,
+                                                           numba.config.NUMBA_NUM_THREADS)
+        assert b["environment"]["worker"]["threads"] == 1
         worker = b["environment"]["worker"]
         assert worker["executor"] == "dask" and worker["name"] in ("0", "1")
         assert worker["address"].startswith("tcp://") and worker["attempts"] == 1

@@ -11,7 +11,7 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.harness.runner import EXECUTORS, execute, method_label, plan, remaining
+from bench.harness.runner import EXECUTORS, default_threads, execute, method_label, plan, remaining
 from bench.harness.suites import evaluation_protocols, get_suite
 from bench.method import canonical_params, resolve_target
 from bench.models import resolve_model
@@ -40,6 +40,10 @@ def add_parser(sub, name: str) -> None:
     p.add_argument("--jobs", "-j", default=str(os.cpu_count() or 1), metavar="N",
                    help="worker processes, at least 1, here or in the LocalCluster of "
                    "--executor dask without --scheduler (default: CPU count)")
+    p.add_argument("--threads", metavar="T",
+                   help="threads each job's parallel kernels may use, at least 1 (default: "
+                   "the CPU count divided by --jobs, so jobs x threads <= cores; 1 on a "
+                   "--scheduler's workers); results do not depend on it")
     p.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="what runs the jobs: a pool of processes here (local, the default) "
                    "or a Dask cluster (dask; README, 'Running on a cluster')")
@@ -99,7 +103,7 @@ def parse_variants(text: str | None) -> list[tuple[str, dict]]:
     return out
 
 
-def _whole(text: str, option: str) -> int:
+def whole_number(text: str, option: str) -> int:
     """A positive whole number given on the command line (no sign, point or exponent)."""
     if not re.fullmatch(r"\s*[0-9]+\s*", text) or int(text) < 1:
         raise InputError(f"{option} must be a whole number of at least 1, got {text!r}")
@@ -151,8 +155,15 @@ def run(args) -> int:
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler is the address of a Dask scheduler: it needs "
                          "--executor dask")
-    workers, timeout = _whole(args.jobs, "--jobs"), _seconds(args.timeout, "--timeout")
-    faces = _budgets(args.faces, "--faces", lambda t: _whole(t, "--faces"))
+    workers, timeout = whole_number(args.jobs, "--jobs"), _seconds(args.timeout, "--timeout")
+    threads = whole_number(args.threads, "--threads") if args.threads else \
+        default_threads(workers, args.scheduler)
+    cores = os.cpu_count() or 1
+    if not args.scheduler and workers * threads > cores:
+        print(f"bench: --jobs {workers} x --threads {threads} is more threads than the "
+              f"{cores} cores here: jobs compete for them and their times grow",
+              file=sys.stderr)
+    faces = _budgets(args.faces, "--faces", lambda t: whole_number(t, "--faces"))
     ratios = _budgets(args.ratios, "--ratios", _ratio)
     out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
     _check_out(out)
@@ -196,12 +207,13 @@ def run(args) -> int:
         p.shading + ("+specular" if p.specular else "") for p in protocols) + " shading"
     where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
              f"with {workers} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
-                                            else ""))
+                                            else "")) + \
+        f", {threads} thread{'s' if threads > 1 else ''} per job"
     print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets"
           f"{shadings}) {where} -> {out}", file=sys.stderr)
     try:
         execute(jobs, out, workers=workers, timeout=timeout, executor=args.executor,
-                scheduler=args.scheduler)
+                scheduler=args.scheduler, threads=threads)
     except KeyboardInterrupt:  # every finished job's record is already on disk
         kept = len(list((out / "records").glob("*.json")))
         print(f"bench: interrupted; {kept} records kept in {out}; --resume continues",

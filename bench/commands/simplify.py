@@ -67,6 +67,8 @@ def add_parser(sub, name: str) -> None:
     p.add_argument("--force", action="store_true",
                    help="write over the input's mesh and material files if OUT names them "
                    "(its textures are never written over)")
+    p.add_argument("--threads", metavar="T", help="threads the method's parallel kernels "
+                   "may use, at least 1 (default: every core); results do not depend on it")
     p.set_defaults(run=run)
 
 
@@ -84,6 +86,11 @@ def parse_levels(text: str, flag: str, kind: type) -> list:
 
 
 def run(args) -> int:
+    from bench.commands.run import whole_number
+    from bench.harness.jobs import use_threads
+
+    if args.threads is not None:
+        use_threads(whole_number(args.threads, "--threads"))
     method_cls = registry("method").load(args.method)
     check_output_path(args.output)  # fail before the work, not after
     params = parse_params(method_cls.Params, args.param)

@@ -83,9 +83,10 @@ class DaskExecutor:
     connects on entry and, for a LocalCluster it started, shuts the cluster down on exit.
     """
 
-    def __init__(self, workers: int = 1, scheduler: str | None = None):
+    def __init__(self, workers: int = 1, scheduler: str | None = None, threads: int = 1):
         self.workers = max(1, int(workers))
         self.scheduler = scheduler
+        self.threads = max(1, int(threads))  # per job, for its parallel kernels
         self.client = None
         self.cluster = None
 
@@ -158,7 +159,7 @@ class DaskExecutor:
                 while pending and len(running) < max(1, threads):
                     job = pending.popleft()
                     future = self.client.submit(
-                        run_on_worker, job, self._mesh(job, meshes), timeout,
+                        run_on_worker, job, self._mesh(job, meshes), timeout, self.threads,
                         key=f"bench-{job.key}-{uuid.uuid4().hex[:8]}", pure=False)
                     running[future] = job
                 try:

@@ -47,18 +47,21 @@ class JobProcesses(WorkerPlugin):
             else:
                 proc.close(grace=2.0)
 
-    def run(self, job: Job, mesh, timeout: float, cancelled) -> JobResult | None:
+    def run(self, job: Job, mesh, timeout: float, cancelled, threads: int = 1
+            ) -> JobResult | None:
         proc = getattr(self._local, "process", None)
         if proc is None or not proc.usable:  # first job of this thread, or after a failure
             proc = self._local.process = JobProcess()
             with self._lock:
                 self._processes = [p for p in self._processes if p.usable] + [proc]
-        return proc.run(job, self.cache_dir, timeout, self.info, mesh, cancelled)
+        return proc.run(job, self.cache_dir, timeout, {**self.info, "threads": threads}, mesh,
+                        cancelled)
 
 
-def run_on_worker(job: Job, mesh, timeout: float) -> JobResult | None:
-    """The Dask task: run ``job`` in this worker thread's job process. Returns None if
-    the client cancelled the job while it ran (its process is then killed)."""
+def run_on_worker(job: Job, mesh, timeout: float, threads: int = 1) -> JobResult | None:
+    """The Dask task: run ``job`` in this worker thread's job process, its parallel
+    kernels on ``threads`` threads. Returns None if the client cancelled the job while it
+    ran (its process is then killed)."""
     worker = get_worker()
     processes = worker.plugins.get(PLUGIN)
     if processes is None:  # the client registers the plugin on every worker, joining
@@ -71,7 +74,7 @@ def run_on_worker(job: Job, mesh, timeout: float) -> JobResult | None:
         task = worker.state.tasks.get(key)
         return task is None or task.state in ("cancelled", "released", "forgotten")
 
-    return processes.run(job, mesh, timeout, cancelled)
+    return processes.run(job, mesh, timeout, cancelled, threads)
 
 
 def dask_setup(worker) -> None:

@@ -54,7 +54,7 @@ from metrics.protocol import Protocol
 
 __all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "canonical_label", "environment",
            "evaluate_result", "failed_result", "mesh_paths",
-           "method_label", "plan", "run_job", "store_result"]
+           "method_label", "plan", "run_job", "store_result", "use_threads"]
 
 #: Protocol views shown in the report's image sheets (spread over the sphere).
 SHEET_VIEWS = (0, 7, 13, 20)
@@ -227,18 +227,34 @@ def run_job(job: Job, cache_dir: Path, worker: dict | None = None, mesh=None,
     into the record's environment); ``mesh`` is the model's mesh when the caller loaded
     it already (a Dask client ships file models, which its workers may not see);
     ``phase(name)`` is told when the method starts (``"method"``) and when it ends
-    (``"evaluation"``), so a supervisor can time the method alone.
+    (``"evaluation"``), so a supervisor can time the method alone. ``worker["threads"]``,
+    when given, is how many threads the job's parallel kernels may use
+    (:func:`use_threads`); the record's ``environment.worker.threads`` says how many they
+    had.
     """
     record = {"schema": SCHEMA_VERSION, "job": job.as_dict(), "status": "failed",
               "error": None, "created": _now(), "environment": _environment_of(worker)}
     result = JobResult(job, record)
     try:
+        record["environment"]["worker"]["threads"] = use_threads((worker or {}).get("threads"))
         _run_job(job, Path(cache_dir), result, mesh, phase)
     except Exception as exc:  # noqa: BLE001 (any failure of a job is its record's error)
         record["status"] = "failed"
         record["error"] = str(exc) if isinstance(exc, BenchError) else \
             f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=8)}"
     return result
+
+
+def use_threads(requested: int | None) -> int:
+    """Let numba's parallel kernels use ``requested`` threads in this process (at most
+    the pool numba started, the machine's cores unless ``NUMBA_NUM_THREADS`` says
+    otherwise; None leaves it as it is) and return how many they will use. Results do
+    not depend on it (docs/maintainers.md, "Parallel kernels and numba's cache")."""
+    import numba
+
+    if requested is not None:
+        numba.set_num_threads(max(1, min(int(requested), numba.config.NUMBA_NUM_THREADS)))
+    return numba.get_num_threads()
 
 
 def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:

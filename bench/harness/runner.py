@@ -18,6 +18,7 @@ for ``--resume``, which skips jobs whose record exists (in :mod:`bench.commands.
 from __future__ import annotations
 
 import json
+import os
 from collections import deque
 from collections.abc import Callable
 from multiprocessing.connection import wait
@@ -62,14 +63,15 @@ def remaining(jobs: list[Job], run_dir: Path) -> list[Job]:
 
 def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 900.0,
             progress: bool = True, executor: str = "local",
-            scheduler: str | None = None) -> list[dict]:
+            scheduler: str | None = None, threads: int | None = None) -> list[dict]:
     """Run ``jobs`` with ``executor``, writing each record into ``run_dir`` as it finishes.
 
     Returns the records in completion order. ``workers`` is the number of job processes
     (local) or of a LocalCluster's workers (dask without ``scheduler``); ``scheduler`` is
     a Dask scheduler's address (dask only). A job whose method runs past ``timeout``
     seconds is failed, as is one whose set-up or evaluation runs past
-    :data:`~bench.harness.jobs.PHASE_LIMIT`.
+    :data:`~bench.harness.jobs.PHASE_LIMIT`. ``threads`` is how many threads each job's
+    parallel kernels may use (None: :func:`default_threads` of ``workers``).
     """
     from tqdm import tqdm
 
@@ -85,9 +87,9 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
     if executor == "dask":
         from bench.harness.cluster import DaskExecutor
 
-        pool = DaskExecutor(workers, scheduler)
+        pool = DaskExecutor(workers, scheduler, threads or default_threads(workers, scheduler))
     else:
-        pool = LocalPool(workers, run_dir / "cache")
+        pool = LocalPool(workers, run_dir / "cache", threads or default_threads(workers))
     with pool:  # a cluster that cannot be reached fails here, before the progress bar
         bar = tqdm(total=len(jobs), unit="job", disable=not progress, dynamic_ncols=True)
 
@@ -104,6 +106,16 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
         finally:
             bar.close()
     return records
+
+
+def default_threads(workers: int, scheduler: str | None = None) -> int:
+    """Threads per job when ``bench run`` is not told: this machine's cores shared by its
+    ``workers`` job processes (jobs x threads <= cores, at least 1 each); 1 on a Dask
+    scheduler's workers, whose machines this one does not know (each worker thread runs a
+    job; --threads gives a job more)."""
+    if scheduler:
+        return 1
+    return max(1, (os.cpu_count() or 1) // max(1, workers))
 
 
 def _group(job: Job) -> tuple[str, str]:
@@ -133,9 +145,10 @@ class LocalPool:
     folder's ``cache/``, shared by the processes (they see the same disk).
     """
 
-    def __init__(self, workers: int, cache_dir: Path):
+    def __init__(self, workers: int, cache_dir: Path, threads: int = 1):
         self.workers = max(1, int(workers))
         self.cache_dir = Path(cache_dir)
+        self.threads = max(1, int(threads))
         self.slots: list[JobProcess | None] = []
 
     def __enter__(self) -> Self:
@@ -175,8 +188,8 @@ class LocalPool:
                 elif proc.expired(timeout):
                     done(proc.timed_out(timeout))
 
-    @staticmethod
-    def _worker(slot: int) -> dict:
+    def _worker(self, slot: int) -> dict:
         import platform
 
-        return {"executor": "local", "name": f"local-{slot}", "host": platform.node()}
+        return {"executor": "local", "name": f"local-{slot}", "host": platform.node(),
+                "threads": self.threads}

@@ -1,0 +1,76 @@
+"""Threads per job: the default shares the cores among the job processes, a job's
+parallel kernels use what it is given, and the result does not depend on it."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numba
+import numpy as np
+import pytest
+
+from bench.harness.jobs import use_threads
+from bench.harness.runner import default_threads
+from conftest import blob
+
+CORES = os.cpu_count() or 1
+
+
+@pytest.fixture
+def restore_threads():
+    before = numba.get_num_threads()
+    yield
+    numba.set_num_threads(before)
+
+
+def test_default_threads_keep_jobs_times_threads_within_the_cores():
+    for workers in range(1, 2 * CORES + 2):
+        threads = default_threads(workers)
+        assert threads >= 1
+        assert workers * threads <= max(CORES, workers)
+    assert default_threads(1) == CORES
+    assert default_threads(CORES + 1) == 1
+    assert default_threads(1, "tcp://somewhere:8786") == 1  # a cluster's cores are unknown here
+
+
+def test_use_threads_sets_numbas_threads_within_its_pool(restore_threads):
+    assert use_threads(1) == 1 == numba.get_num_threads()
+    assert use_threads(10_000) == numba.config.NUMBA_NUM_THREADS
+    assert use_threads(0) == 1
+    assert use_threads(None) == numba.get_num_threads()  # None: left as it is
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
+@pytest.mark.parametrize("method", ["image-driven", "entropy-twin"])
+def test_one_and_two_threads_give_the_same_mesh_bit_for_bit(method, restore_threads):
+    from bench.method import run_method
+    from bench.models.torus import make_torus
+    from bench.registry import registry
+
+    cls = registry("method").load(method)
+    mesh = blob() if method == "image-driven" else make_torus(24, 16, texture_size=64)
+    results = []
+    for threads in (1, 2):
+        use_threads(threads)
+        results.append(run_method(cls(), mesh, mesh.n_faces // 10).mesh)
+    one, two = results
+    assert np.array_equal(one.faces, two.faces)
+    assert np.array_equal(one.positions, two.positions)
+    if one.uv is not None:
+        assert np.array_equal(one.uv, two.uv)
+
+
+@pytest.mark.parametrize("command", [["run", "--models", "bunny"], ["simplify", "bunny",
+                                                                    "out.obj", "-m", "qslim",
+                                                                    "--faces", "100"]])
+def test_a_bad_thread_count_is_one_line(command, tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "bench", *command, "--threads", "0"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert proc.returncode != 0
+    assert proc.stderr.strip() == "bench: error: --threads must be a whole number of at " \
+        "least 1, got '0'"
+    assert not (tmp_path / "out.obj").exists()
