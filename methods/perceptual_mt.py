@@ -56,6 +56,29 @@ Choices where the paper is vague:
   512-pixel image on a 96 dpi monitor seen from about 50 cm (1° ≈ 8.7 mm ≈ 33 px). It
   scales every imperceptibility distance by the same factor, so the cuts do not
   depend on it; it sets the reported distances (in multiples of the viewing distance).
+
+Ablation switches (parameters whose defaults are the method; each turns one part of
+the perceptual error off, for the ``w2003-ablation`` suite, and changes nothing at its
+default):
+
+- ``silhouette_contrast=false``: a node on the silhouette gets the contrast of its
+  surface, as a front-facing node, instead of maximal contrast (§3.3, §5.3);
+- ``lighting_contrast=false``: the contrast is the intrinsic (texture or material)
+  luminance range alone, without §5.4's bound of the lighting over the shading cone
+  (the untextured bunny then has contrast only on its silhouettes);
+- ``feature_size``: ``sphere`` (the bounding sphere, §5.4's per-vertex lighting),
+  ``deviation`` (twice the texture deviation, §3.2 and normal maps) or ``auto`` (the
+  sphere when lit, the deviation unlit). With ``deviation`` the perceptual error is
+  the ``screen`` error times 4 f_vis(c) / ppd, so it differs from ``screen`` only by
+  the contrast's weight;
+- ``refinement=scratch``: every view's refinement starts from the coarsest cut, the
+  simple top-down algorithm of §5.1, instead of the previous view's cut; the cut is
+  the same (methods.mt.refine), only the work differs.
+
+``ppd`` and ``peak_sensitivity`` are the observer's; ``ppd`` and the resolution only
+scale every distance (the cuts do not change, see "Observer model"), while
+``peak_sensitivity`` moves the contrast threshold (nodes below it get distance 0) and
+reshapes f_vis(c).
 """
 
 from __future__ import annotations
@@ -69,8 +92,8 @@ import numpy as np
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult
 from methods.mt.cache import mt_and_bounds
-from methods.mt.errors import ERRORS
-from methods.mt.refine import Refiner
+from methods.mt.errors import ERRORS, FEATURE_SIZES
+from methods.mt.refine import REFINEMENTS, Refiner
 
 
 class ViewCuts:
@@ -126,6 +149,11 @@ class PerceptualMT(Method):
         peak_sensitivity: float = 200.0
         silhouette_factor: float = 10.0
         texture_weight: float = 1.0
+        # ablation switches (the docstring's "Ablation switches"); defaults: the method
+        silhouette_contrast: bool = True
+        lighting_contrast: bool = True
+        feature_size: Literal["auto", "sphere", "deviation"] = "auto"
+        refinement: Literal["incremental", "scratch"] = "incremental"
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         p = self.params
@@ -133,12 +161,20 @@ class PerceptualMT(Method):
             raise ValueError(f"error must be one of {', '.join(ERRORS)}, got {p.error!r}")
         if not p.ppd > 0:
             raise ValueError(f"ppd must be positive, got {p.ppd}")
+        if p.feature_size not in FEATURE_SIZES:
+            raise ValueError(f"feature_size must be one of {', '.join(FEATURE_SIZES)}, "
+                             f"got {p.feature_size!r}")
+        if p.refinement not in REFINEMENTS:
+            raise ValueError(f"refinement must be one of {', '.join(REFINEMENTS)}, "
+                             f"got {p.refinement!r}")
         # one MT and its bounds per (model, parameters), whatever the budget or error
         mt, bounds, source, t_mt = mt_and_bounds(mesh, p.texture_weight, self.version,
                                                  (ctx or {}).get("cache_dir"))
         lighting = "gouraud" if p.lighting == "auto" else p.lighting
         refiner = Refiner(mt, bounds, p.error, lighting, p.specular != "false", p.ppd,
-                          p.peak_sensitivity, p.silhouette_factor)
+                          p.peak_sensitivity, p.silhouette_factor, p.refinement,
+                          silhouette_contrast=p.silhouette_contrast,
+                          lighting_contrast=p.lighting_contrast, feature_size=p.feature_size)
         refiner.refine_object(target_faces)
         simplified = refiner.cut.mesh().replace(name=mesh.name, metadata=dict(mesh.metadata))
         stats = {"mt_nodes": mt.n_nodes, "mt_triangles": mt.n_triangles,

@@ -591,3 +591,99 @@ def test_runner_images_each_view_with_its_own_cut(tmp_path, monkeypatch):
     assert len(record["stats"]["refine_ms"]) == 24
     assert len(record["per_view"]["d_rms"]) == 24
     assert record["metrics"]["faces"] <= 60
+
+
+# -- ablation switches (w2003-ablation) -----------------------------------------------------
+
+@pytest.fixture(scope="module")
+def lit_torus():
+    mesh = make_torus(48, 24, texture_size=64)  # fine enough for front-facing nodes
+    mt = build_mt(mesh)
+    return mesh, mt, preprocess(mt)
+
+
+def test_ablation_switches_default_to_the_method():
+    p = PerceptualMT.Params()
+    assert (p.silhouette_contrast, p.lighting_contrast, p.feature_size, p.refinement) == \
+        (True, True, "auto", "incremental")
+    with pytest.raises(ParamError):
+        parse_params(PerceptualMT.Params, ["feature_size=bbox"])
+
+
+def test_silhouette_contrast_switch_changes_silhouette_nodes_only(lit_torus):
+    mesh, mt, b = lit_torus
+    cam = protocol_cameras(mesh)[3]
+    on, status = node_errors(b, cam, 512, subtree_max=False)
+    off, _ = node_errors(b, cam, 512, subtree_max=False, silhouette_contrast=False)
+    sil = status == 2
+    assert sil.any() and (status == 1).any()
+    np.testing.assert_array_equal(on[~sil], off[~sil])
+    # maximal contrast is the largest f_vis: never below the surface's own contrast
+    assert np.all(off[sil] <= on[sil]) and np.any(off[sil] < on[sil])
+
+
+def test_lighting_contrast_switch_leaves_the_untextured_surface_without_contrast():
+    mesh = make_torus(48, 24, texture_size=64)
+    mesh = Mesh(mesh.positions, mesh.faces)  # untextured: one gray, no intrinsic contrast
+    mt = build_mt(mesh)
+    b = preprocess(mt)
+    cam = protocol_cameras(mesh)[3]
+    lit, status = node_errors(b, cam, 512, subtree_max=False)
+    unlit, _ = node_errors(b, cam, 512, subtree_max=False, lighting_contrast=False)
+    front = status == 1
+    assert np.all(unlit[front] == 0) and (lit[front] > 0).mean() > 0.5
+    np.testing.assert_array_equal(unlit[status == 2], lit[status == 2])  # maximal
+
+
+def test_feature_size_deviation_makes_the_error_the_screen_error_weighted_by_contrast(
+        lit_torus):
+    mesh, mt, b = lit_torus
+    cam = protocol_cameras(mesh)[3]
+    csf_ = ContrastSensitivity()
+    ppd = 32.0
+    screen, status = node_errors(b, cam, 512, error="screen", subtree_max=False)
+    sphere, _ = node_errors(b, cam, 512, subtree_max=False, feature_size="sphere")
+    auto, _ = node_errors(b, cam, 512, subtree_max=False)
+    dev, _ = node_errors(b, cam, 512, subtree_max=False, feature_size="deviation")
+    np.testing.assert_array_equal(auto, sphere)  # lit: auto is the sphere
+    # perceptual = f_vis(c) · 2 · (2 · deviation in pixels) / ppd, screen = deviation in
+    # pixels: on silhouettes c = 1, so the ratio is 4 f_vis(1) / ppd
+    sil = (status == 2) & (screen > 0)
+    np.testing.assert_allclose(dev[sil] / screen[sil],
+                               4 * csf_.visible_frequency(1.0) / ppd, rtol=1e-9)
+    assert not np.allclose(dev, sphere)
+    with pytest.raises(ValueError, match="feature_size"):
+        node_errors(b, cam, 512, feature_size="bbox")
+
+
+def test_scratch_refinement_gives_the_same_cuts_with_more_work(lit_torus):
+    mesh, mt, b = lit_torus
+    a = Refiner(mt, b, "perceptual", "gouraud", True)
+    s = Refiner(mt, b, "perceptual", "gouraud", True, refinement="scratch")
+    work_a = work_s = 0
+    for k, cam in enumerate(protocol_cameras(mesh)):
+        budget = 300 + 7 * k
+        ia, is_ = a.refine_view(cam, budget, 512), s.refine_view(cam, budget, 512)
+        np.testing.assert_array_equal(a.cut.applied, s.cut.applied)
+        work_a += ia["raised"] + ia["lowered"]
+        work_s += is_["raised"] + is_["lowered"]
+    assert work_s > work_a
+    with pytest.raises(ValueError, match="refinement"):
+        Refiner(mt, b, refinement="top-down")
+
+
+def test_ppd_and_resolution_scale_the_distances_but_not_the_cut(lit_torus):
+    mesh, mt, b = lit_torus
+    cam = protocol_cameras(mesh)[5]
+    e32, _ = node_errors(b, cam, 512)
+    e10, _ = node_errors(b, cam, 512, ppd=10.0)
+    e1024, _ = node_errors(b, cam, 1024)
+    np.testing.assert_allclose(e10, e32 * 3.2, rtol=1e-12)
+    np.testing.assert_array_equal(e1024, 2 * e32)
+    cuts = []
+    for err in (e32, e10, e1024):
+        cut = mt.cut("coarsest")
+        refine(cut, err, 500)
+        cuts.append(cut.applied.copy())
+    np.testing.assert_array_equal(cuts[0], cuts[1])
+    np.testing.assert_array_equal(cuts[0], cuts[2])

@@ -43,6 +43,9 @@ ERRORS = {"object": 0, "screen": 1, "screen-silhouette": 2, "perceptual": 3}
 
 LIGHTINGS = {"none": 0, "flat": 1, "gouraud": 2}
 
+#: Feature sizes of the perceptual error (:func:`node_errors`' ``feature_size``).
+FEATURE_SIZES = ("auto", "sphere", "deviation")
+
 
 #: The evaluation renderer's constants (metrics.render.ShadingConstants).
 AMBIENT, DIFFUSE, SPECULAR, SHININESS = (DEFAULT_CONSTANTS.ambient, DEFAULT_CONSTANTS.diffuse,
@@ -52,9 +55,13 @@ AMBIENT, DIFFUSE, SPECULAR, SHININESS = (DEFAULT_CONSTANTS.ambient, DEFAULT_CONS
 @njit(cache=True)
 def _node_errors(center, radius, sax, sang, hax, hang, lum, dev, eye, forward, right, up,
                  tan_half, near, far, resolution, ppd, mode, lighting, ks, sil_factor,
-                 c_lo, c_hi, inv_table, out, status):
+                 c_lo, c_hi, inv_table, sil_contrast, lit_contrast, sphere_extent, out, status):
     """Error of every node from one view into ``out``; ``status`` gets 0 invisible,
-    1 front-facing, 2 silhouette."""
+    1 front-facing, 2 silhouette. The ablation switches (:func:`node_errors`):
+    ``sil_contrast`` gives silhouette nodes maximal contrast, ``lit_contrast`` bounds
+    the contrast under ``lighting`` (else the intrinsic luminance range alone),
+    ``sphere_extent`` takes the feature size from the bounding sphere (else twice the
+    texture deviation)."""
     c = center.shape[0]
     norm_side = 1.0 / math.sqrt(1.0 + tan_half * tan_half)
     px_per_unit = 0.5 * resolution / tan_half  # pixels per unit length at distance 1
@@ -102,11 +109,11 @@ def _node_errors(center, radius, sax, sang, hax, hang, lum, dev, eye, forward, r
             out[i] = e
             continue
         # perceptual: contrast (§3.3, §5.2, §5.4)
-        if kind == 2:
+        if kind == 2 and sil_contrast:
             contrast = 1.0
         else:
             tmin, tmax = lum[i, 0], lum[i, 1]
-            if lighting == 0:
+            if lighting == 0 or not lit_contrast:
                 lmin, lmax = tmin, tmax
             else:
                 if lighting == 1:
@@ -123,10 +130,10 @@ def _node_errors(center, radius, sax, sang, hax, hang, lum, dev, eye, forward, r
                 lmax = min(1.0, lmax)
             contrast = 0.0 if lmax + lmin <= 0.0 else (lmax - lmin) / (lmax + lmin)
         # worst-case frequency from the feature's extent (§3.2, §5.4)
-        if lighting == 0:
-            extent_px = 2.0 * dev[i] * scale
-        else:
+        if sphere_extent:
             extent_px = 2.0 * r * scale
+        else:
+            extent_px = 2.0 * dev[i] * scale
         f_vis = visible_frequency_kernel(contrast, c_lo, c_hi, inv_table)
         # imperceptibility distance in viewing distances: f_vis * 2 * extent in degrees
         out[i] = f_vis * 2.0 * extent_px / ppd
@@ -145,7 +152,8 @@ def _children_max(out, child_start, children):
 def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perceptual",
                 lighting: str = "gouraud", specular: bool = True, ppd: float = 32.0,
                 csf: ContrastSensitivity | None = None, silhouette_factor: float = 10.0,
-                subtree_max: bool = True):
+                subtree_max: bool = True, silhouette_contrast: bool = True,
+                lighting_contrast: bool = True, feature_size: str = "auto"):
     """Per-node errors from one camera (see the module docstring).
 
     Parameters
@@ -165,6 +173,15 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
     subtree_max : bool
         Give each node the largest error of its subtree (the module docstring); False
         gives each node's own error, for tests and diagnostics.
+    silhouette_contrast, lighting_contrast, feature_size
+        Ablation switches of the perceptual error (the defaults are the method):
+        ``silhouette_contrast=False`` gives a node on the silhouette the contrast of
+        its surface, as a front-facing node (§3.3 gives it maximal contrast);
+        ``lighting_contrast=False`` takes the contrast from the intrinsic (texture or
+        material) luminance range alone, without §5.4's bound of the lighting over the
+        shading cone; ``feature_size`` is ``"sphere"`` (the bounding sphere's projected
+        diameter), ``"deviation"`` (twice the projected texture deviation) or
+        ``"auto"`` (§5.4: the sphere when lit, the deviation when unlit).
 
     Returns
     -------
@@ -180,6 +197,11 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
         raise ValueError(f"lighting must be one of {', '.join(LIGHTINGS)}, got {lighting!r}")
     if not ppd > 0:
         raise ValueError(f"ppd (pixels per degree) must be positive, got {ppd}")
+    if feature_size not in FEATURE_SIZES:
+        raise ValueError(f"feature_size must be one of {', '.join(FEATURE_SIZES)}, "
+                         f"got {feature_size!r}")
+    sphere_extent = (lighting != "none") if feature_size == "auto" else \
+        feature_size == "sphere"
     csf = csf or ContrastSensitivity()
     c_lo, c_hi, table = csf.tables()
     forward = camera.direction
@@ -195,7 +217,8 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
                  np.asarray(camera.eye, np.float64), forward, right, up, tan_half,
                  float(camera.near), float(camera.far), float(resolution), float(ppd),
                  ERRORS[error], LIGHTINGS[lighting], SPECULAR if specular else 0.0,
-                 float(silhouette_factor), c_lo, c_hi, table, out, status)
+                 float(silhouette_factor), c_lo, c_hi, table, bool(silhouette_contrast),
+                 bool(lighting_contrast), bool(sphere_extent), out, status)
     if subtree_max:
         _children_max(out, bounds.child_start, bounds.children)
     return out, status

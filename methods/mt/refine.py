@@ -214,25 +214,43 @@ def refine(cut: Cut, errors: np.ndarray, budget: int) -> tuple[int, int]:
     return int(raised), int(lowered)
 
 
+#: Where each view's refinement starts (:class:`Refiner`).
+REFINEMENTS = ("incremental", "scratch")
+
+
 class Refiner:
-    """Per-view cuts of one MT under one error, each view starting from the last cut."""
+    """Per-view cuts of one MT under one error, each view starting from the last cut
+    (``refinement="incremental"``, §5.1's two queues with temporal coherence) or from
+    the coarsest cut (``"scratch"``, §5.1's simple top-down refinement: the same cut,
+    more work). ``error_options`` are the ablation switches of
+    :func:`methods.mt.errors.node_errors` (``silhouette_contrast``,
+    ``lighting_contrast``, ``feature_size``)."""
 
     def __init__(self, mt: MultiTriangulation, bounds: NodeBounds, error: str = "perceptual",
                  lighting: str = "gouraud", specular: bool = True, ppd: float = 32.0,
-                 peak_sensitivity: float = 200.0, silhouette_factor: float = 10.0):
+                 peak_sensitivity: float = 200.0, silhouette_factor: float = 10.0,
+                 refinement: str = "incremental", **error_options):
+        if refinement not in REFINEMENTS:
+            raise ValueError(f"refinement must be one of {', '.join(REFINEMENTS)}, "
+                             f"got {refinement!r}")
         self.mt, self.bounds = mt, bounds
         self.error, self.lighting, self.specular = error, lighting, specular
         self.ppd, self.silhouette_factor = ppd, silhouette_factor
+        self.refinement, self.error_options = refinement, dict(error_options)
         self.csf = ContrastSensitivity(peak_sensitivity)
         self.cut = mt.cut("coarsest")
 
     def errors(self, camera, resolution: int):
         return node_errors(self.bounds, camera, resolution, self.error, self.lighting,
-                           self.specular, self.ppd, self.csf, self.silhouette_factor)
+                           self.specular, self.ppd, self.csf, self.silhouette_factor,
+                           **self.error_options)
 
     def refine_view(self, camera, budget: int, resolution: int) -> dict:
-        """Refine the current cut for ``camera``; returns timing and counts."""
+        """Refine the current cut for ``camera`` (or the coarsest, ``"scratch"``);
+        returns timing and counts."""
         t = time.perf_counter()
+        if self.refinement == "scratch":
+            self.cut = self.mt.cut("coarsest")
         err, _ = self.errors(camera, resolution)
         t_err = time.perf_counter() - t
         raised, lowered = refine(self.cut, err, budget)
