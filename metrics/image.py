@@ -265,8 +265,11 @@ def _compute_ssim(original, simplified, ctx=None) -> Value:
 def _compute_flip(original, simplified, ctx=None) -> Value:
     ctx = {} if ctx is None else ctx
     views = ctx.get("flip_views")
-    if views is None and getattr(ctx.get("protocol"), "flip_views", "subset") == "all":
-        views = "all"
+    protocol = ctx.get("protocol")
+    if views is None and (getattr(protocol, "flip_views", "subset") == "all"
+                          or getattr(protocol, "views", "rhombicuboctahedron")
+                          != "rhombicuboctahedron"):
+        views = "all"  # the subset indexes the 24 views; another view set: all its views
     value, per_view, _ = flip_mean(*_images(ctx), views=views)
     return Value(value, per_view)
 

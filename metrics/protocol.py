@@ -19,6 +19,15 @@ built-in metrics make up the protocol:
 6. model-specific metrics where the original's metadata defines them
    (``exterior_share``, §5.2; :func:`model_metrics`).
 
+Two settings vary the images for comparisons made the way another paper makes them
+(defaults: the 24 views at 512², the protocol above): ``resolution`` and ``views``, a
+named view set of :data:`metrics.views.VIEW_SETS` (``representative``: one view, as
+Williams et al. 2003 compare in §6 and Figure 4). Both are recorded with every result
+and, when not at their defaults, in the job's key and its evaluation label
+(:func:`bench.harness.results.shading_label`), so results under different settings are
+never matched with each other; FLIP's view subset belongs to the 24 views, so any other
+view set runs FLIP on every one of its views.
+
 Rendering lives here (:func:`render_views`, :func:`original_images`); the metric modules
 only compare what they are given, so none of them imports this one.
 
@@ -60,14 +69,34 @@ class Protocol:
     hausdorff_samples: int = 200_000
     flip_views: Literal["subset", "all"] = "subset"
     version: str = PROTOCOL_VERSION
+    #: the named view set of :data:`metrics.views.VIEW_SETS` the images are taken from
+    views: Literal["rhombicuboctahedron", "representative"] = "rhombicuboctahedron"
+
+    def __post_init__(self) -> None:
+        from metrics.views import VIEW_SETS
+
+        if self.views not in VIEW_SETS:
+            raise ValueError(f"views must be one of {', '.join(VIEW_SETS)}, got {self.views!r}")
+        if isinstance(self.resolution, bool) or not isinstance(self.resolution, int) \
+                or self.resolution < 1:
+            raise ValueError(f"resolution must be a positive number of pixels, "
+                             f"got {self.resolution!r}")
 
     def as_dict(self) -> dict:
         return asdict(self)
 
+    def cameras(self, original: Mesh) -> list:
+        """The evaluation cameras of ``original`` under these settings."""
+        from metrics.views import evaluation_cameras
+
+        return evaluation_cameras(original, self.views)
+
     def image_key(self, mesh: Mesh) -> str:
-        """Cache key of a mesh's protocol images under these settings."""
+        """Cache key of a mesh's protocol images under these settings (the view set
+        shows only when it is not the default, so the default's keys never change)."""
+        views = "" if self.views == "rhombicuboctahedron" else f"-{self.views}"
         return (f"{mesh.content_hash[:16]}-p{self.version}-{self.shading}"
-                f"{'-spec' if self.specular else ''}-{self.resolution}-msaa{self.msaa}")
+                f"{'-spec' if self.specular else ''}-{self.resolution}-msaa{self.msaa}{views}")
 
 
 @dataclass
@@ -90,17 +119,17 @@ def cache_dir() -> Path:
 
 
 def render_views(mesh: Mesh, original: Mesh, protocol: Protocol) -> np.ndarray:
-    """The 24 protocol images of ``mesh`` with cameras fitted to ``original``.
+    """The protocol images of ``mesh`` with cameras fitted to ``original`` (the 24
+    views by default; ``protocol.views`` names the set).
 
     Returns
     -------
-    ndarray of shape (24, R, R, 3) uint8
+    ndarray of shape (V, R, R, 3) uint8
     """
     from metrics.render import get_renderer
-    from metrics.views import protocol_cameras
 
     renderer = get_renderer(protocol.resolution, protocol.resolution, protocol.msaa)
-    return renderer.render(mesh, protocol_cameras(original), shading=protocol.shading,
+    return renderer.render(mesh, protocol.cameras(original), shading=protocol.shading,
                            specular=protocol.specular)
 
 
@@ -109,12 +138,11 @@ def render_per_view(meshes: list[Mesh], original: Mesh, protocol: Protocol) -> n
 
     Returns
     -------
-    ndarray of shape (24, R, R, 3) uint8
+    ndarray of shape (V, R, R, 3) uint8
     """
     from metrics.render import get_renderer
-    from metrics.views import protocol_cameras
 
-    cameras = protocol_cameras(original)
+    cameras = protocol.cameras(original)
     if len(meshes) != len(cameras):
         raise ValueError(f"a view-dependent result needs one mesh per protocol view "
                          f"({len(cameras)}), got {len(meshes)}")

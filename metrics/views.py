@@ -33,9 +33,13 @@ import numpy as np
 __all__ = [
     "Camera",
     "FOV_Y_DEG",
+    "REPRESENTATIVE_VIEW",
+    "VIEW_SETS",
+    "VIEW_SET_SIZES",
     "bounding_sphere",
     "cameras_for",
     "dodecahedron_directions",
+    "evaluation_cameras",
     "protocol_cameras",
     "rhombicuboctahedron_directions",
     "silhouette_cameras",
@@ -52,6 +56,21 @@ FAR_IN_RADII = 3.01
 POLE_TOLERANCE = 1e-6
 
 _GOLDEN = (1.0 + np.sqrt(5.0)) / 2.0
+
+#: Named evaluation view sets (``metrics.protocol.Protocol.views``), the default first:
+#: ``rhombicuboctahedron``, the 24 views of Lindstrom & Turk 2000 (§3.2, §5.1);
+#: ``representative``, one of them alone, :data:`REPRESENTATIVE_VIEW`, for comparisons
+#: made as Williams et al. 2003 make theirs ("a single representative view" per model,
+#: §6 and Figure 4).
+VIEW_SETS = ("rhombicuboctahedron", "representative")
+#: The number of views of each named set.
+VIEW_SET_SIZES = {"rhombicuboctahedron": 24, "representative": 1}
+#: The index, into :func:`rhombicuboctahedron_directions`, of the ``representative``
+#: view: direction (-1, 1, -(1 + √2)), normalised. The same for every model, so the
+#: protocol knows no model by name; chosen on the two models of the ``w2003`` suite,
+#: where it shows the bunny upright in a three-quarter side view and the puzzle torus
+#: along its axis, the whole ring and its hole in the frame.
+REPRESENTATIVE_VIEW = 8
 
 
 # -- viewpoint sets ---------------------------------------------------------------------
@@ -328,6 +347,23 @@ def _mesh_sphere(key: str, positions: np.ndarray) -> tuple[np.ndarray, float]:
 def protocol_cameras(mesh) -> list[Camera]:
     """The 24 evaluation cameras (small rhombicuboctahedron, §3.2/§5.1) of ``mesh``."""
     return cameras_for(mesh, rhombicuboctahedron_directions())
+
+
+def evaluation_cameras(mesh, views: str = "rhombicuboctahedron") -> list[Camera]:
+    """The cameras of the named view set ``views`` (:data:`VIEW_SETS`) of ``mesh``.
+
+    ``rhombicuboctahedron`` is :func:`protocol_cameras`; ``representative`` is its
+    camera :data:`REPRESENTATIVE_VIEW` alone (the same camera, bit for bit).
+
+    Raises
+    ------
+    ValueError
+        For a name not in :data:`VIEW_SETS`.
+    """
+    if views not in VIEW_SETS:
+        raise ValueError(f"views must be one of {', '.join(VIEW_SETS)}, got {views!r}")
+    cameras = protocol_cameras(mesh)
+    return cameras if views == "rhombicuboctahedron" else [cameras[REPRESENTATIVE_VIEW]]
 
 
 def silhouette_cameras(mesh) -> list[Camera]:

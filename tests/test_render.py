@@ -295,3 +295,21 @@ def test_importing_pyrender_first_without_egl_fails_clearly():
                             text=True, timeout=120)
     assert result.returncode != 0
     assert "PYOPENGL_PLATFORM=egl" in result.stderr
+
+
+def test_protocol_with_the_representative_view_evaluates_that_view_alone(sphere):
+    """One view, the 24-view protocol's REPRESENTATIVE_VIEW pixel for pixel; d_rms and
+    FLIP over that view (FLIP's 6-view subset belongs to the 24 views)."""
+    from metrics.protocol import Protocol, evaluate, render_views
+    from metrics.views import REPRESENTATIVE_VIEW
+
+    every = Protocol("gouraud", specular=True, resolution=64, msaa=1, hausdorff_samples=500)
+    one = Protocol("gouraud", specular=True, resolution=64, msaa=1, hausdorff_samples=500,
+                   views="representative")
+    coarse = icosphere(2)
+    images = render_views(coarse, sphere, one)
+    assert images.shape == (1, 64, 64, 3)
+    np.testing.assert_array_equal(images[0], render_views(coarse, sphere, every)[REPRESENTATIVE_VIEW])
+    ev = evaluate(sphere, coarse, one)
+    assert len(ev.per_view["d_rms"]) == 1 and len(ev.per_view["flip"]) == 1
+    assert ev.metrics["d_rms"] > 0 and ev.images.shape == (1, 64, 64, 3)

@@ -241,3 +241,80 @@ def test_report_shows_each_evaluation_shading_and_the_exterior_share(tmp_path):
     plain = write_report(tmp_path, [_record("q", FLAT, 5.0)]).read_text()
     assert "exterior_share" not in plain and "evaluated flat" not in plain
     assert "Faces on the exterior" not in plain
+
+
+# -- protocol options: the image settings of another paper (w2003-paper) -------------------
+
+PAPER = Protocol("gouraud", specular=True, resolution=1024, views="representative")
+
+
+def test_views_is_a_recorded_protocol_option_with_the_24_views_by_default():
+    assert Protocol().views == "rhombicuboctahedron"
+    assert Protocol().as_dict()["views"] == "rhombicuboctahedron"
+    with pytest.raises(ValueError, match="views must be one of"):
+        Protocol(views="front")
+    with pytest.raises(ValueError, match="resolution"):
+        Protocol(resolution=0)
+
+
+def test_a_suite_protocol_may_set_resolution_and_views():
+    protocols = evaluation_protocols(get_suite("w2003-paper"))
+    assert protocols == [PAPER]
+    both = evaluation_protocols(get_suite("w2003-ablation"))
+    assert both == [GOURAUD_SPEC, PAPER]
+    # --shading replaces the suite's protocols by one at the default image settings
+    assert evaluation_protocols(get_suite("w2003-paper"), "flat") == [FLAT]
+    assert evaluation_protocols(get_suite("w2003"))[0] == GOURAUD_SPEC  # unchanged
+
+
+@pytest.mark.parametrize("protocols, message", [
+    ((("flat", False, {"msaa": 1}),), "not one of resolution, views"),
+    ((("flat", False, {"views": "front"}),), "views must be one of"),
+    ((("flat", False, {"resolution": -5}),), "resolution"),
+    ((("flat", False, "1024"),), "must be a dict"),
+    ((("flat", False), ("flat", False, {"resolution": 512})), "twice")])
+def test_suite_protocol_options_are_validated(protocols, message):
+    with pytest.raises(ValueError, match=message):
+        Suite("bad", "a bad suite", ("bunny",), protocols=protocols)
+
+
+def test_the_default_protocol_keeps_its_keys_and_labels():
+    job = plan(["bunny"], [("perceptual-mt", {})], {"bunny": [1123]}, [GOURAUD_SPEC, PAPER])
+    assert job[0].key == f"bunny__perceptual-mt__1123__gouraud-spec-p{PROTOCOL_VERSION}"
+    assert job[1].key.startswith(f"bunny__perceptual-mt__1123__gouraud-spec-p{PROTOCOL_VERSION}-")
+    assert shading_label(GOURAUD_SPEC.as_dict()) == "gouraud-spec"
+    assert shading_label(PAPER.as_dict()) == "gouraud-spec-1024-representative"
+    assert shading_label(Protocol(resolution=256).as_dict()) == "flat-256"
+    mesh = type("M", (), {"content_hash": "a" * 40})()
+    assert GOURAUD_SPEC.image_key(mesh) == f"{'a' * 16}-p{PROTOCOL_VERSION}-gouraud-spec-512-msaa4"
+    assert PAPER.image_key(mesh).endswith("-1024-msaa4-representative")
+
+
+def test_records_under_the_two_settings_are_never_matched():
+    from bench.harness.claims import evaluate_claim
+
+    records = [_record("q", GOURAUD_SPEC, 5.0), _record("q", PAPER, 6.0)]
+    entries = make_baseline(records)["entries"]
+    assert sorted(entries) == ["m | q | 100 | gouraud-spec",
+                               "m | q | 100 | gouraud-spec-1024-representative"]
+    claim = next(c for c in get_suite("w2003-paper").claims if c.name == "w2003-98-paper")
+    ours = [_record(lab, p, v, model="bunny") for lab, p, v in [
+        ("perceptual-mt", GOURAUD_SPEC, 1.0), ("perceptual-mt[error=screen]", GOURAUD_SPEC, 2.0),
+        ("perceptual-mt", PAPER, 3.0), ("perceptual-mt[error=screen]", PAPER, 4.0)]]
+    for r in ours:
+        r["job"]["target_faces"], r["model"]["faces"] = 20, 1000
+    rows = evaluate_claim(claim, ours).rows
+    assert [(r["shading"], r["value"]) for r in rows] == [
+        ("gouraud-spec-1024-representative", 0.75)]
+
+
+def test_a_record_made_before_views_existed_is_read_as_the_24_views():
+    from bench.harness.results import record_problem
+
+    old = _record("q", GOURAUD_SPEC, 5.0)
+    del old["job"]["protocol"]["views"]
+    assert record_problem(old) is None
+    assert shading_label(old["job"]["protocol"]) == "gouraud-spec"
+    bad = _record("q", GOURAUD_SPEC, 5.0)
+    bad["job"]["protocol"]["views"] = "front"
+    assert "views" in record_problem(bad)

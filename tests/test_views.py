@@ -235,3 +235,20 @@ def test_camera_and_cameras_for_reject_bad_input():
         cameras_for(np.eye(3), [[0.0, 0.0, 0.0]])
     with pytest.raises(ValueError, match=r"\(k, 3\)"):
         cameras_for(np.eye(3), [1.0, 0.0, 0.0])
+
+
+def test_evaluation_cameras_name_the_view_sets(bunny):
+    from metrics.views import REPRESENTATIVE_VIEW, VIEW_SET_SIZES, VIEW_SETS, evaluation_cameras
+
+    every = protocol_cameras(bunny)
+    default = evaluation_cameras(bunny)  # the 24 views
+    assert len(default) == 24
+    for a, b in zip(default, every):
+        np.testing.assert_array_equal(a.eye, b.eye)
+    one = evaluation_cameras(bunny, "representative")
+    assert len(one) == 1 and one[0] is not None
+    np.testing.assert_array_equal(one[0].eye, every[REPRESENTATIVE_VIEW].eye)
+    np.testing.assert_array_equal(one[0].up, every[REPRESENTATIVE_VIEW].up)
+    assert {v: len(evaluation_cameras(bunny, v)) for v in VIEW_SETS} == VIEW_SET_SIZES
+    with pytest.raises(ValueError, match="views must be one of"):
+        evaluation_cameras(bunny, "front")

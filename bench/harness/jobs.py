@@ -49,15 +49,23 @@ import numpy as np
 
 from bench.errors import BenchError
 from bench.harness.keys import job_key
-from bench.harness.results import SCHEMA_VERSION, write_file, write_record
+from bench.harness.results import SCHEMA_VERSION, shading_label, write_file, write_record
 from metrics.protocol import Protocol
 
 __all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "canonical_label", "environment",
-           "evaluate_result", "failed_result", "mesh_paths",
-           "method_label", "plan", "run_job", "store_result", "use_threads"]
+           "evaluate_result", "failed_result", "mesh_paths", "method_label", "plan",
+           "run_job", "sheet_views", "store_result", "use_threads"]
 
 #: Protocol views shown in the report's image sheets (spread over the sphere).
 SHEET_VIEWS = (0, 7, 13, 20)
+
+
+def sheet_views(n_views: int) -> tuple[int, ...]:
+    """The views of a job's image sheet among its ``n_views`` evaluation views:
+    :data:`SHEET_VIEWS` of the 24-view protocol, every view of a smaller view set
+    (``Protocol.views``)."""
+    picked = tuple(v for v in SHEET_VIEWS if v < n_views)
+    return picked if n_views >= 24 else tuple(range(min(n_views, len(SHEET_VIEWS))))
 
 
 def method_label(name: str, params: dict) -> str:
@@ -327,9 +335,7 @@ def evaluate_result(original, result, protocol, reference_images=None):
 
     view_meshes, view_stats = None, {}
     if result.view_cuts is not None:  # view-dependent: each view imaged with its own cut
-        from metrics.views import protocol_cameras
-
-        view_meshes = result.view_cuts(protocol_cameras(original), protocol)
+        view_meshes = result.view_cuts(protocol.cameras(original), protocol)
         view_stats = dict(getattr(result.view_cuts, "stats", {}))
     ev = evaluate(original, result.mesh, protocol, reference_images=reference_images,
                   view_meshes=view_meshes)
@@ -342,13 +348,13 @@ _ORIGINAL_SHEETS: dict[str, dict[str, bytes]] = {}
 def _sheet_files(job: Job, mesh, reference, images, result: JobResult) -> None:
     """PNGs of :data:`SHEET_VIEWS` for the report: the original's once per model and
     shading (encoded once per process), the result's per job."""
-    shading = job.protocol.shading + ("-spec" if job.protocol.specular else "")
+    shading = shading_label(job.protocol.as_dict())
     original = f"images/original__{mesh.content_hash[:12]}__{shading}"
     if original not in _ORIGINAL_SHEETS:
         _ORIGINAL_SHEETS[original] = {f"{original}/view{v:02d}.png": _png(reference[v])
-                                      for v in SHEET_VIEWS}
+                                      for v in sheet_views(len(reference))}
     result.shared_files.update(_ORIGINAL_SHEETS[original])
-    for v in SHEET_VIEWS:
+    for v in sheet_views(len(images)):
         result.files[f"images/{job.key}/view{v:02d}.png"] = _png(images[v])
 
 

@@ -250,8 +250,11 @@ def _protocol_note(records: list[dict]) -> str:
         shadings += " shading (each result evaluated under each; the shading column says which)"
     else:
         shadings += " shading"
-    return (f"<p class='note'>Protocol v{_esc(p['version'])}: 24 small-rhombicuboctahedron "
-            f"views at {p['resolution']}² with {p['msaa']}× MSAA, {_esc(shadings)}, 50% gray "
+    view_set = p.get("views", "rhombicuboctahedron")
+    views = ("24 small-rhombicuboctahedron views" if view_set == "rhombicuboctahedron"
+             else f"the {_esc(view_set)} view set")
+    return (f"<p class='note'>Protocol v{_esc(p['version'])}: {views} "
+            f"at {p['resolution']}² with {p['msaa']}× MSAA, {_esc(shadings)}, 50% gray "
             f"background, headlight; "
             f"Hausdorff with {p['hausdorff_samples']:,} samples each way, as fractions of the "
             f"original's bounding-box diagonal; FLIP on {_esc(p['flip_views'])} views; "
@@ -427,18 +430,21 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out, images:
 def sheet_images(run_dir: Path, record: dict, refused: list[str], out) -> list[dict]:
     """A job's sheet views as shown (``original``, ``result``, ``difference``: a
     :class:`Shown` or None each) with the view's ``d_rms`` (None when the record has
-    none), in :data:`~bench.harness.jobs.SHEET_VIEWS` order."""
-    from bench.harness.jobs import SHEET_VIEWS
+    none), in :data:`~bench.harness.jobs.SHEET_VIEWS` order (every view of a smaller
+    view set, ``Protocol.views``); ``view`` is the view's index."""
+    from bench.harness.jobs import sheet_views
+    from metrics.views import VIEW_SET_SIZES
 
     key, original = _image_folders(run_dir, record)
     d_views = (record.get("per_view") or {}).get("d_rms") or []
     views = []
-    for v in SHEET_VIEWS:
+    view_set = record["job"]["protocol"].get("views", "rhombicuboctahedron")
+    for v in sheet_views(VIEW_SET_SIZES.get(view_set, 24)):
         o = run_png(run_dir, f"{original}/view{v:02d}.png", refused) if original else None
         s = run_png(run_dir, f"images/{key}/view{v:02d}.png", refused)
         diff = difference_png(o, s)
         d = d_views[v] if v < len(d_views) and isinstance(d_views[v], numbers.Real) else None
-        views.append({"original": out.view(o) if o else None,
+        views.append({"view": v, "original": out.view(o) if o else None,
                       "result": out.view(s) if s else None,
                       "difference": out.difference(diff, s) if diff else None,
                       "d_rms": None if d is None else float(d)})
@@ -448,10 +454,8 @@ def sheet_images(run_dir: Path, record: dict, refused: list[str], out) -> list[d
 def _sheet_figures(record: dict, views: list[dict]) -> list[str]:
     """A job's sheet from its :func:`sheet_images`: the original's views, the result's
     and their differences, one grid row each."""
-    from bench.harness.jobs import SHEET_VIEWS
-
     faces = f"{record['metrics'].get('faces')} faces"
-    rows = [[(f"original, view {v}", c["original"]) for v, c in zip(SHEET_VIEWS, views)],
+    rows = [[(f"original, view {c['view']}", c["original"]) for c in views],
             [(faces, c["result"]) for c in views],
             [(f"|ΔY|×4, d_RMS {_fixed(c['d_rms'], 1)}" if c["d_rms"] is not None
               else "|ΔY|×4", c["difference"]) for c in views]]

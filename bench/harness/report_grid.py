@@ -36,8 +36,6 @@ def _img(shown, alt: str, cls: str) -> str:
 def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
     """The grids of one model's ok ``records``; ``images`` maps ``id(record)`` to its
     :func:`~bench.harness.report.sheet_images` (views in sheet order)."""
-    from bench.harness.jobs import SHEET_VIEWS
-
     groups: dict[tuple, list[dict]] = {}
     for r in records:
         if r["status"] == "ok" and id(r) in images:
@@ -51,8 +49,9 @@ def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
         head = "<th>view</th><th>original</th>" + "".join(
             f"<th>{esc(r['job']['label'])}</th>" for r in group)
         rows = []
-        for i, view in enumerate(SHEET_VIEWS):
+        for i in range(min(len(images[id(r)]) for r in group)):
             cells = [images[id(r)][i] for r in group]
+            view = cells[0]["view"]
             values = [c["d_rms"] for c in cells]
             finite = [v for v in values if v is not None and math.isfinite(v)]
             best = min(finite) if finite else None

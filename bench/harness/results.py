@@ -60,8 +60,17 @@ CSV_COLUMNS = ["model", "method", "shading", "target_faces", "faces", "d_rms", "
 
 def shading_label(protocol: dict) -> str:
     """The evaluation shading of a record's protocol: ``flat``, ``gouraud``, or either
-    with ``-spec`` when specular highlights were on (as in record file names)."""
-    return protocol["shading"] + ("-spec" if protocol.get("specular") else "")
+    with ``-spec`` when specular highlights were on (as in record file names); a
+    resolution other than 512 adds ``-<pixels>`` and a view set other than the 24
+    views adds ``-<name>`` (``gouraud-spec-1024-representative``), so results under
+    different image settings are never matched (by ``bench check``, the claims, the
+    report). The default protocol's labels are the ones records always had."""
+    label = protocol["shading"] + ("-spec" if protocol.get("specular") else "")
+    if protocol.get("resolution", 512) != 512:
+        label += f"-{protocol['resolution']}"
+    if protocol.get("views", "rhombicuboctahedron") != "rhombicuboctahedron":
+        label += f"-{protocol['views']}"
+    return label
 
 
 def write_record(path: Path, record: dict, sort_keys: bool = True) -> Path:
@@ -207,6 +216,11 @@ def record_problem(record) -> str | None:
     return None
 
 
+#: Protocol fields added after records were first written; a record without one was
+#: made under the field's default.
+_LATER_PROTOCOL_FIELDS = frozenset({"views"})
+
+
 def _protocol_problem(protocol) -> str | None:
     """Every field of :class:`~metrics.protocol.Protocol`, of its type, and no other."""
     from metrics.protocol import Protocol
@@ -220,6 +234,8 @@ def _protocol_problem(protocol) -> str | None:
         return f"'job.protocol' has unknown field {_show(unknown[0])}"
     for name in names:
         if name not in protocol:
+            if name in _LATER_PROTOCOL_FIELDS:
+                continue  # a record made before the field existed: its default
             return f"'job.protocol' lacks '{name}'"
         value, kind = protocol[name], hints[name]
         if typing.get_origin(kind) is typing.Literal:

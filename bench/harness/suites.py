@@ -48,11 +48,19 @@ public, so ours are pre-decimated to those sizes: ``bunny-textured-815``,
 ``bunny-textured-4698``, ``torus-13810``); entropy-twin also without its UV correction,
 to show what the correction does to d_rms.
 
+``w2003-paper`` is the same comparison in the paper's own setting (§6, Figure 4): one
+representative view per model (``metrics.views.REPRESENTATIVE_VIEW``) at 1,024², 50 %
+gray background, as protocol options (``Protocol.views``, ``Protocol.resolution``).
+
 The ``*-ablation`` suites take a claim that does not hold apart: ``lt2000-interior-
 ablation`` varies image-driven's memoryless tie-breaker and pre-simplification on the
 ``interior`` model; ``g2008-ablation`` switches off, one at a time, the background in
 entropy-twin's entropy, its Canny term and its pre-simplification, and tries full-edge
-(optimal) placement instead of its half-edge collapse.
+(optimal) placement instead of its half-edge collapse; ``w2003-ablation`` switches off,
+one at a time, the parts of perceptual-mt's error the paper's gain should come from
+(maximal silhouette contrast, §5.4's lighting bounds, the bounding sphere as feature
+size), moves the CSF's peak sensitivity and the observer's pixels per degree, and
+refines every view from scratch, at 98 % under both settings.
 """
 
 from __future__ import annotations
@@ -61,7 +69,8 @@ from dataclasses import dataclass, field, replace
 
 from bench.harness.claims import Claim
 
-__all__ = ["Suite", "SUITES", "get_suite", "evaluation_protocols", "SHADINGS"]
+__all__ = ["Suite", "SUITES", "get_suite", "evaluation_protocols", "SHADINGS",
+           "PROTOCOL_OPTIONS"]
 
 #: Evaluation shadings the protocol knows.
 SHADINGS = ("flat", "gouraud")
@@ -79,8 +88,10 @@ class Suite:
     ratios: tuple[float, ...] = ()
     #: model -> face budgets, taking precedence over ratios
     faces: dict = field(default_factory=dict)
-    #: evaluation protocols as (shading, specular) pairs; every job runs under each
-    protocols: tuple[tuple[str, bool], ...] = (("flat", False),)
+    #: evaluation protocols as (shading, specular) pairs, or (shading, specular,
+    #: options) where options sets other :class:`~metrics.protocol.Protocol` fields
+    #: (:data:`PROTOCOL_OPTIONS`: ``resolution``, ``views``); every job runs under each
+    protocols: tuple[tuple, ...] = (("flat", False),)
     #: the papers' claims this suite tests (:mod:`bench.harness.claims`); each is scoped
     #: to the suite's models and budgets unless it narrows them itself
     claims: tuple[Claim, ...] = ()
@@ -88,11 +99,17 @@ class Suite:
     def __post_init__(self) -> None:
         if not self.protocols:
             raise ValueError(f"suite {self.name!r} needs at least one evaluation protocol")
-        for shading, specular in self.protocols:
+        for entry in self.protocols:
+            shading, specular, options = _protocol_entry(entry)
             if shading not in SHADINGS or not isinstance(specular, bool):
                 raise ValueError(f"suite {self.name!r}: protocol ({shading!r}, {specular!r}) "
                                  f"is not (one of {'|'.join(SHADINGS)}, True|False)")
-        if len(set(self.protocols)) != len(self.protocols):
+            unknown = sorted(set(options) - set(PROTOCOL_OPTIONS))
+            if unknown:
+                raise ValueError(f"suite {self.name!r}: protocol option {unknown[0]!r} is not "
+                                 f"one of {', '.join(PROTOCOL_OPTIONS)}")
+            _protocol(shading, specular, options)  # the Protocol checks the values
+        if len({_protocol(*_protocol_entry(e)) for e in self.protocols}) != len(self.protocols):
             raise ValueError(f"suite {self.name!r} lists a protocol twice: {self.protocols}")
         budgets = tuple(sorted({f for fs in self.faces.values() for f in fs}, reverse=True))
         object.__setattr__(self, "claims", tuple(replace(
@@ -102,10 +119,35 @@ class Suite:
             for c in self.claims))
 
 
+#: Protocol fields a suite may set besides the shading (:class:`Suite` ``protocols``).
+PROTOCOL_OPTIONS = ("resolution", "views")
+
+
+def _protocol_entry(entry) -> tuple[str, bool, dict]:
+    """(shading, specular, options) of a suite's protocol entry."""
+    if not isinstance(entry, tuple) or len(entry) not in (2, 3):
+        raise ValueError(f"a suite's protocol is (shading, specular) or (shading, specular, "
+                         f"options), got {entry!r}")
+    options = entry[2] if len(entry) == 3 else {}
+    if not isinstance(options, dict):
+        raise ValueError(f"a suite's protocol options must be a dict, got {options!r}")
+    return entry[0], entry[1], options
+
+
+def _protocol(shading: str, specular: bool, options: dict):
+    from metrics.protocol import Protocol
+
+    return Protocol(shading=shading, specular=specular, **options)
+
+
 def _scaled(faces: tuple[int, ...], of: int, to: int) -> tuple[int, ...]:
     """Face counts of a model with ``of`` faces scaled to one with ``to`` faces."""
     return tuple(round(f * to / of) for f in faces)
 
+
+#: The image settings of Williams et al. 2003 §6 (1,024² images, "a single representative
+#: view" per model, Figure 4; the background is the protocol's 50 % gray already).
+W2003_PAPER_SETTING = {"resolution": 1024, "views": "representative"}
 
 #: Table 1 of Lindstrom & Turk 2000: the bunny's final sizes, of 69,451 faces.
 LT2000_BUNNY_FACES = (2899, 1333, 654, 304, 143)
@@ -251,6 +293,31 @@ SUITES = {
                   below=1.0, ratios=(0.02,), paper="ltdiff 3,123 vs 3,689",
                   paper_value=3123 / 3689),
         )),
+    "w2003-paper": Suite(
+        "w2003-paper", "Williams et al. 2003 §6 in the paper's own setting: the w2003 "
+        "variants evaluated on one representative view at 1,024², gray background, "
+        "Gouraud shading with specular highlights",
+        models=("torus-puzzle", "bunny"),
+        variants=tuple(("perceptual-mt", {"error": e})
+                       for e in ("perceptual", "object", "screen", "screen-silhouette")),
+        ratios=(0.10, 0.02),
+        protocols=(("gouraud", True, W2003_PAPER_SETTING),),
+        claims=(
+            Claim("w2003-98-paper", "Williams et al. 2003, Plate 2 and Fig. 4",
+                  "at 98 % simplification with per-vertex lighting the perceptual metric "
+                  "gives a lower image error than screen-space deviation, measured as the "
+                  "paper does: one representative view at 1,024², gray background",
+                  "d_rms", "perceptual-mt[error=perceptual]", "perceptual-mt[error=screen]",
+                  below=1.0, ratios=(0.02,), paper="ltdiff 3,123 vs 3,689",
+                  paper_value=3123 / 3689, shading="gouraud-spec-1024-representative",
+                  note="one view (metrics.views.REPRESENTATIVE_VIEW) per model; the paper "
+                  "measures with its own ltdiff, ours is d_rms"),
+            Claim("w2003-98-paper-flip", "Williams et al. 2003, Plate 2 and Fig. 4",
+                  "the same in the paper's setting, measured with FLIP", "flip",
+                  "perceptual-mt[error=perceptual]", "perceptual-mt[error=screen]",
+                  below=1.0, ratios=(0.02,), paper="ltdiff 3,123 vs 3,689",
+                  paper_value=3123 / 3689, shading="gouraud-spec-1024-representative"),
+        )),
     "g2008": Suite(
         "g2008", "González et al. 2008 (WSCG): entropy-twin (with and without the UV "
         "correction) against qslim, qslim-texture, quadric and canny-texture on game-style "
@@ -320,6 +387,24 @@ SUITES = {
                   ("entropy-twin", {"placement": "optimal"}),
                   ("qslim", {}), ("memoryless", {})),
         faces={"bunny": (1123,), "bunny-textured": (1000,)}),
+    "w2003-ablation": Suite(
+        "w2003-ablation", "ablation of w2003-98: perceptual-mt at 98 % without maximal "
+        "contrast on silhouettes, without §5.4's lighting bounds in the contrast, with the "
+        "texture deviation as feature size, with the CSF peak at 50 and 1,000 instead of "
+        "200, at 10 pixels per degree instead of 32, and refined from scratch in every "
+        "view, next to the screen-space error; under our protocol and the paper's "
+        "setting (one view at 1,024²)",
+        models=("torus-puzzle", "bunny"),
+        variants=(("perceptual-mt", {}), ("perceptual-mt", {"error": "screen"}),
+                  ("perceptual-mt", {"silhouette_contrast": False}),
+                  ("perceptual-mt", {"lighting_contrast": False}),
+                  ("perceptual-mt", {"feature_size": "deviation"}),
+                  ("perceptual-mt", {"peak_sensitivity": 50.0}),
+                  ("perceptual-mt", {"peak_sensitivity": 1000.0}),
+                  ("perceptual-mt", {"ppd": 10.0}),
+                  ("perceptual-mt", {"refinement": "scratch"})),
+        ratios=(0.02,),
+        protocols=(("gouraud", True), ("gouraud", True, W2003_PAPER_SETTING))),
 }
 
 
@@ -327,21 +412,20 @@ def evaluation_protocols(suite: Suite | None = None, shading: str | None = None,
                          specular: bool = False) -> list:
     """The :class:`~metrics.protocol.Protocol` list of a run.
 
-    ``--shading`` on the command line replaces the suite's protocols by the one given;
-    ``--specular`` alone adds specular highlights to each of them. Without a suite the
-    default is flat shading.
+    ``--shading`` on the command line replaces the suite's protocols by the one given
+    (at the default image settings); ``--specular`` alone adds specular highlights to
+    each of them, keeping their options. Without a suite the default is flat shading.
     """
-    from metrics.protocol import Protocol
-
     if shading is not None:
         if shading not in SHADINGS:
             raise ValueError(f"shading must be one of {', '.join(SHADINGS)}, got {shading!r}")
-        pairs = [(shading, specular)]
+        entries = [(shading, specular, {})]
     elif suite is not None:
-        pairs = [(s, spec or specular) for s, spec in suite.protocols]
+        entries = [(s, spec or specular, options)
+                   for s, spec, options in map(_protocol_entry, suite.protocols)]
     else:
-        pairs = [("flat", specular)]
-    return [Protocol(shading=s, specular=spec) for s, spec in dict.fromkeys(pairs)]
+        entries = [("flat", specular, {})]
+    return list(dict.fromkeys(_protocol(*e) for e in entries))
 
 
 def get_suite(name: str) -> Suite:
