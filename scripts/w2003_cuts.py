@@ -6,7 +6,7 @@ decide the cut, and the share of silhouette nodes among the refined ones; then t
 checks that the cut does not depend on where refinement starts (two queues from the
 previous view's cut against a from-scratch cut), on ``ppd`` or on the resolution.
 
-Usage: .venv/bin/python scripts/w2003_cuts.py [RATIO] [CACHE_DIR]
+Usage: .venv/bin/python scripts/w2003_cuts.py [RATIO] [CACHE_DIR] [MODEL,...]
 (RATIO of each model's faces, default 0.02; CACHE_DIR a run folder's ``cache/`` to
 reuse its Multi-Triangulations, e.g. reports/reproduce/w2003/cache).
 """
@@ -19,6 +19,7 @@ from scipy.stats import spearmanr
 import bench  # noqa: F401  (the BLAS kernel pin comes first)
 from bench.models import resolve_model
 from methods.mt.cache import mt_and_bounds
+from methods.mt.csf import ContrastSensitivity
 from methods.mt.errors import node_errors
 from methods.mt.refine import Refiner, refine
 from methods.perceptual_mt import PerceptualMT
@@ -36,7 +37,24 @@ def refined(mt, err, budget):
     return ~cut.applied, cut.n_faces
 
 
+def relative_visibility(bounds, camera, own):
+    """f_vis(c) / f_vis(1) of every node from its own perceptual error (1: the contrast
+    bound is maximal, as on a silhouette): the error over its feature size."""
+    d = bounds.center - camera.eye
+    dist = np.linalg.norm(d, axis=1)
+    tan_half = np.tan(np.radians(camera.fov_y_deg) / 2)
+    dmin = np.maximum(dist - bounds.radius, camera.near)
+    extent_deg = 2 * bounds.radius * (0.5 * RESOLUTION / tan_half) / dmin / 32.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return own / (2 * extent_deg) / CSF.visible_frequency(1.0)
+
+
+CSF = ContrastSensitivity()
+
+
 def compare_view(mt, bounds, camera, budget):
+    own, _ = node_errors(bounds, camera, RESOLUTION, "perceptual", "gouraud", True,
+                         subtree_max=False)
     ep, status = node_errors(bounds, camera, RESOLUTION, "perceptual", "gouraud", True)
     es, _ = node_errors(bounds, camera, RESOLUTION, "screen", "gouraud", True)
     p, fp = refined(mt, ep, budget)
@@ -54,7 +72,10 @@ def compare_view(mt, bounds, camera, budget):
             "sil_p": float((status[p] == 2).mean()) if p.any() else 0.0,
             "sil_s": float((status[s] == 2).mean()) if s.any() else 0.0,
             "sil_nodes": float((status[visible] == 2).mean()),
-            "zero_p": float((ep[visible] == 0).mean())}
+            "zero_p": float((ep[visible] == 0).mean()),
+            # how saturated the contrast of the front-facing nodes that decide the cut is
+            "fvis_front": float(np.median(relative_visibility(bounds, camera, own)[
+                decide & (status == 1)])) if (decide & (status == 1)).any() else float("nan")}
 
 
 def same_cuts(mt, bounds, cameras, budget, **kwargs):
@@ -74,7 +95,8 @@ def same_cuts(mt, bounds, cameras, budget, **kwargs):
 def main():
     ratio = float(sys.argv[1]) if len(sys.argv) > 1 else 0.02
     cache = sys.argv[2] if len(sys.argv) > 2 else None
-    for name in MODELS:
+    models = sys.argv[3].split(",") if len(sys.argv) > 3 else MODELS
+    for name in models:
         mesh = resolve_model(name)
         budget = round(ratio * mesh.n_faces)
         mt, bounds, _, _ = mt_and_bounds(mesh, 1.0, PerceptualMT.version, cache)

@@ -306,6 +306,14 @@ def test_records_under_the_two_settings_are_never_matched():
     rows = evaluate_claim(claim, ours).rows
     assert [(r["shading"], r["value"]) for r in rows] == [
         ("gouraud-spec-1024-representative", 0.75)]
+    # a suite of one protocol scopes its claims to it: w2003-98 reads our protocol only
+    ours_claim = next(c for c in get_suite("w2003").claims if c.name == "w2003-98")
+    assert ours_claim.shading == "gouraud-spec"
+    assert [(r["shading"], r["value"]) for r in evaluate_claim(ours_claim, ours).rows] == [
+        ("gouraud-spec", 0.5)]
+    assert evaluate_claim(ours_claim, ours[2:]).verdict == "no data"
+    # several protocols: a claim names its own (lt2000-shading's do)
+    assert all(c.shading for c in get_suite("lt2000-shading").claims)
 
 
 def test_a_record_made_before_views_existed_is_read_as_the_24_views():

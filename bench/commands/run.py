@@ -16,6 +16,7 @@ from bench.harness.suites import evaluation_protocols, get_suite
 from bench.method import canonical_params, resolve_target
 from bench.models import resolve_model
 from bench.registry import registry
+from metrics.protocol import Protocol
 
 DEFAULT_RATIOS = (0.02, 0.01)
 
@@ -204,7 +205,10 @@ def run(args) -> int:
     except OSError as exc:
         raise InputError(f"--out {out}: cannot create it ({exc.strerror or exc})") from None
     shadings = " x " + "/".join(
-        p.shading + ("+specular" if p.specular else "") for p in protocols) + " shading"
+        p.shading + ("+specular" if p.specular else "")
+        + (f" at {p.resolution}px" if p.resolution != Protocol().resolution else "")
+        + (f" on the {p.views} view set" if p.views != Protocol().views else "")
+        for p in protocols) + " shading"
     where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
              f"with {workers} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
                                             else "")) + \

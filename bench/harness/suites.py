@@ -93,7 +93,8 @@ class Suite:
     #: (:data:`PROTOCOL_OPTIONS`: ``resolution``, ``views``); every job runs under each
     protocols: tuple[tuple, ...] = (("flat", False),)
     #: the papers' claims this suite tests (:mod:`bench.harness.claims`); each is scoped
-    #: to the suite's models and budgets unless it narrows them itself
+    #: to the suite's models and budgets unless it narrows them itself, and to the
+    #: suite's evaluation label (shading and image settings) when it has one protocol
     claims: tuple[Claim, ...] = ()
 
     def __post_init__(self) -> None:
@@ -112,10 +113,17 @@ class Suite:
         if len({_protocol(*_protocol_entry(e)) for e in self.protocols}) != len(self.protocols):
             raise ValueError(f"suite {self.name!r} lists a protocol twice: {self.protocols}")
         budgets = tuple(sorted({f for fs in self.faces.values() for f in fs}, reverse=True))
+        # a suite of one protocol scopes its claims to it, so that records of the same
+        # jobs under other image settings (w2003 and w2003-paper) never decide them
+        from bench.harness.results import shading_label
+
+        only = (shading_label(_protocol(*_protocol_entry(self.protocols[0])).as_dict())
+                if len(self.protocols) == 1 else None)
         object.__setattr__(self, "claims", tuple(replace(
             c, suite=self.name, models=c.models or self.models,
             faces=c.faces or (budgets if not c.ratios else ()),
-            ratios=c.ratios or (self.ratios if not (c.faces or budgets) else ()))
+            ratios=c.ratios or (self.ratios if not (c.faces or budgets) else ()),
+            shading=c.shading or only)
             for c in self.claims))
 
 
