@@ -52,6 +52,13 @@ def relative_visibility(bounds, camera, own):
 CSF = ContrastSensitivity()
 
 
+def _median_ratio(bounds, pick):
+    if not pick.any():
+        return float("nan")
+    with np.errstate(divide="ignore"):
+        return float(np.median(bounds.radius[pick] / bounds.deviation[pick]))
+
+
 def compare_view(mt, bounds, camera, budget):
     own, _ = node_errors(bounds, camera, RESOLUTION, "perceptual", "gouraud", True,
                          subtree_max=False)
@@ -73,6 +80,9 @@ def compare_view(mt, bounds, camera, budget):
             "sil_s": float((status[s] == 2).mean()) if s.any() else 0.0,
             "sil_nodes": float((status[visible] == 2).mean()),
             "zero_p": float((ep[visible] == 0).mean()),
+            # what the nodes only one cut refines look like: sphere radius over deviation
+            "r/dev_onlyP": _median_ratio(bounds, p & ~s),
+            "r/dev_onlyS": _median_ratio(bounds, s & ~p),
             # how saturated the contrast of the front-facing nodes that decide the cut is
             "fvis_front": float(np.median(relative_visibility(bounds, camera, own)[
                 decide & (status == 1)])) if (decide & (status == 1)).any() else float("nan")}

@@ -318,8 +318,10 @@ SUITES = {
                   "d_rms", "perceptual-mt[error=perceptual]", "perceptual-mt[error=screen]",
                   below=1.0, ratios=(0.02,), paper="ltdiff 3,123 vs 3,689",
                   paper_value=3123 / 3689, shading="gouraud-spec-1024-representative",
-                  note="one view (metrics.views.REPRESENTATIVE_VIEW) per model; the paper "
-                  "measures with its own ltdiff, ours is d_rms"),
+                  note="one view (metrics.views.REPRESENTATIVE_VIEW, chosen before "
+                  "measuring) per model, so one draw from the spread of the per-view "
+                  "ratios of w2003 (the README's diagnosis); the paper measures with its "
+                  "own ltdiff, ours is d_rms"),
             Claim("w2003-98-paper-flip", "Williams et al. 2003, Plate 2 and Fig. 4",
                   "the same in the paper's setting, measured with FLIP", "flip",
                   "perceptual-mt[error=perceptual]", "perceptual-mt[error=screen]",
