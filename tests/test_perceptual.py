@@ -611,7 +611,7 @@ def test_ablation_switches_default_to_the_method():
 
 
 def test_silhouette_contrast_switch_changes_silhouette_nodes_only(lit_torus):
-    mesh, mt, b = lit_torus
+    mesh, _, b = lit_torus
     cam = protocol_cameras(mesh)[3]
     on, status = node_errors(b, cam, 512, subtree_max=False)
     off, _ = node_errors(b, cam, 512, subtree_max=False, silhouette_contrast=False)
@@ -637,7 +637,7 @@ def test_lighting_contrast_switch_leaves_the_untextured_surface_without_contrast
 
 def test_feature_size_deviation_makes_the_error_the_screen_error_weighted_by_contrast(
         lit_torus):
-    mesh, mt, b = lit_torus
+    mesh, _, b = lit_torus
     cam = protocol_cameras(mesh)[3]
     csf_ = ContrastSensitivity()
     ppd = 32.0

@@ -64,8 +64,7 @@ def sheet_views(n_views: int) -> tuple[int, ...]:
     """The views of a job's image sheet among its ``n_views`` evaluation views:
     :data:`SHEET_VIEWS` of the 24-view protocol, every view of a smaller view set
     (``Protocol.views``)."""
-    picked = tuple(v for v in SHEET_VIEWS if v < n_views)
-    return picked if n_views >= 24 else tuple(range(min(n_views, len(SHEET_VIEWS))))
+    return SHEET_VIEWS if n_views >= 24 else tuple(range(min(n_views, len(SHEET_VIEWS))))
 
 
 def method_label(name: str, params: dict) -> str:

@@ -257,7 +257,8 @@ def _protocol_note(records: list[dict]) -> str:
             f"at {p['resolution']}² with {p['msaa']}× MSAA, {_esc(shadings)}, 50% gray "
             f"background, headlight; "
             f"Hausdorff with {p['hausdorff_samples']:,} samples each way, as fractions of the "
-            f"original's bounding-box diagonal; FLIP on {_esc(p['flip_views'])} views; "
+            f"original's bounding-box diagonal; FLIP on "
+            f"{_esc(p['flip_views'] if view_set == 'rhombicuboctahedron' else 'all')} views; "
             f"silhouettes over the 20 dodecahedron views. "
             f"Commit {_esc(str(env.get('git_commit'))[:12])}, "
             f"{_esc(as_dict(env.get('machine')).get('processor'))}.</p>")

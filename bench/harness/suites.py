@@ -137,8 +137,8 @@ def _protocol_entry(entry) -> tuple[str, bool, dict]:
         raise ValueError(f"a suite's protocol is (shading, specular) or (shading, specular, "
                          f"options), got {entry!r}")
     options = entry[2] if len(entry) == 3 else {}
-    if not isinstance(options, dict):
-        raise ValueError(f"a suite's protocol options must be a dict, got {options!r}")
+    if not isinstance(options, dict):  # a bad suite is one kind of error: ValueError
+        raise ValueError(f"a suite's protocol options must be a dict, got {options!r}")  # noqa: TRY004
     return entry[0], entry[1], options
 
 
