@@ -238,14 +238,25 @@ def _shadings(records: list[dict]) -> list[str]:
     return list(dict.fromkeys(shading_label(r["job"]["protocol"]) for r in records))
 
 
+def _evaluation_words(protocol: dict) -> str:
+    """A record's evaluation label in words: ``gouraud + specular``, with the image
+    settings that are not the default (``at 1024² on the representative view``)."""
+    words = protocol["shading"] + (" + specular" if protocol.get("specular") else "")
+    if protocol.get("resolution", 512) != 512:
+        words += f" at {protocol['resolution']}²"
+    if protocol.get("views", "rhombicuboctahedron") != "rhombicuboctahedron":
+        words += f" on the {protocol['views']} view set"
+    return words
+
+
 def _protocol_note(records: list[dict]) -> str:
     ok = [r for r in records if r["status"] == "ok"]
     if not ok:
         return "<p class='note'>No successful jobs.</p>"
     p = ok[0]["job"]["protocol"]
     env = as_dict(ok[0].get("environment"))
-    labels = _shadings(ok)
-    shadings = " and ".join(s.replace("-spec", " + specular") for s in labels)
+    labels = list(dict.fromkeys(_evaluation_words(r["job"]["protocol"]) for r in ok))
+    shadings = " and ".join(labels)
     if len(labels) > 1:
         shadings += " shading (each result evaluated under each; the shading column says which)"
     else:
