@@ -46,6 +46,9 @@ TARGETS = (
     Target("entropy-13810", "entropy-twin", "torus-13810", 1000, seconds=22.7),
 )
 
+#: Seconds one job's process may take, loading and warm-up included.
+JOB_LIMIT = 1800.0
+
 CODE = """
 import sys, warnings
 import bench
@@ -65,10 +68,15 @@ print(mesh.n_faces, result.mesh.n_faces, result.stats["wall_seconds"])
 
 def time_job(target: Target) -> tuple[int, int, float]:
     """(input faces, output faces, method seconds) of one fresh process."""
-    out = subprocess.run([sys.executable, "-c", CODE, target.method, target.model,
-                          str(target.faces)], cwd=ROOT, capture_output=True, text=True)
+    try:
+        out = subprocess.run([sys.executable, "-c", CODE, target.method, target.model,
+                              str(target.faces)], cwd=ROOT, capture_output=True, text=True,
+                             timeout=JOB_LIMIT, check=False)
+    except subprocess.TimeoutExpired:
+        sys.exit(f"{target.name}: no result within {JOB_LIMIT:g} s")
     if out.returncode:
-        sys.exit(f"{target.name}: {out.stderr.strip().splitlines()[-1]}")
+        lines = out.stderr.strip().splitlines()
+        sys.exit(f"{target.name}: exit code {out.returncode}" + (f": {lines[-1]}" if lines else ""))
     n_in, n_out, seconds = out.stdout.split()[-3:]
     return int(n_in), int(n_out), float(seconds)
 
@@ -79,6 +87,8 @@ def main() -> None:
     parser.add_argument("--jobs", default=",".join(t.name for t in TARGETS),
                         help="which of: " + ", ".join(t.name for t in TARGETS))
     args = parser.parse_args()
+    if args.rounds < 1:
+        sys.exit(f"--rounds must be at least 1, got {args.rounds}")
     names = args.jobs.split(",")
     unknown = sorted(set(names) - {t.name for t in TARGETS})
     if unknown:

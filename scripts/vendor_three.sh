@@ -11,6 +11,11 @@
 #                                          the bundle is byte for byte the committed one
 set -euo pipefail
 cd "$(dirname "$0")/.."
+case "${1:-}" in
+    ""|--check) ;;
+    *) echo "vendor_three: unknown argument '$1' (give nothing to rebuild, or --check)" >&2
+       exit 2 ;;
+esac
 
 THREE_VERSION=0.187.0
 ESBUILD_VERSION=0.28.2
@@ -35,11 +40,17 @@ cd - >/dev/null
 sha=$(sha256sum "$work/three.min.js" | cut -d' ' -f1)
 if [ "${1:-}" = "--check" ]; then
     committed=$(sed -n 's/^sha256 //p' "$DEST/VERSION")
-    if [ "$sha" != "$committed" ]; then
-        echo "vendor_three: the rebuilt bundle's sha256 $sha is not the committed $committed" >&2
+    on_disk=$(sha256sum "$DEST/three.min.js" | cut -d' ' -f1)
+    if [ "$sha" != "$committed" ] || [ "$on_disk" != "$committed" ]; then
+        echo "vendor_three: the rebuilt bundle's sha256 $sha, the committed file's $on_disk" \
+             "and VERSION's $committed differ" >&2
         exit 1
     fi
-    echo "vendor_three: $DEST/three.min.js rebuilds byte for byte ($sha)"
+    if ! cmp -s "$work/node_modules/three/LICENSE" "$DEST/LICENSE"; then
+        echo "vendor_three: $DEST/LICENSE is not three $THREE_VERSION's" >&2
+        exit 1
+    fi
+    echo "vendor_three: $DEST/three.min.js and LICENSE rebuild byte for byte ($sha)"
     exit 0
 fi
 mkdir -p "$DEST"

@@ -91,7 +91,7 @@ def test_local_pool_and_dask_give_identical_records(ico, tmp_path):
         assert a["model"] == b["model"]
         assert a["environment"]["worker"]["executor"] == "local"
         # one job process: all the cores (numba's pool, at most); on Dask as told
-        assert a["environment"]["worker"]["threads"] == min(os.cpu_count() or 1,
+        assert a["environment"]["worker"]["threads"] == min(len(os.sched_getaffinity(0)),
                                                            numba.config.NUMBA_NUM_THREADS)
         assert b["environment"]["worker"]["threads"] == 1
         worker = b["environment"]["worker"]

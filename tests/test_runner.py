@@ -100,7 +100,7 @@ def test_record_contents(run):
     assert r["stats"]["tri_per_s"] > 0
     assert r["stats"]["compile_seconds"] >= 0  # the warm-up, apart from wall_seconds
     # --jobs 2 and no --threads: the cores shared by the two job processes
-    assert r["environment"]["worker"]["threads"] == max(1, (os.cpu_count() or 1) // 2)
+    assert r["environment"]["worker"]["threads"] == max(1, len(os.sched_getaffinity(0)) // 2)
     # the evaluated mesh and the original as GLB, for the report's 3D view; none for a
     # failed job
     meshes = root / "out" / "meshes"

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from bench.harness.jobs import use_threads
-from bench.harness.runner import default_threads
+from bench.harness.runner import default_threads, usable_cores
 from conftest import blob
 
-CORES = os.cpu_count() or 1
+CORES = usable_cores()
 
 
 @pytest.fixture
@@ -23,6 +23,10 @@ def restore_threads():
     before = numba.get_num_threads()
     yield
     numba.set_num_threads(before)
+
+
+def test_usable_cores_are_the_affinity():
+    assert usable_cores() == len(os.sched_getaffinity(0)) <= (os.cpu_count() or 1)
 
 
 def test_default_threads_keep_jobs_times_threads_within_the_cores():

@@ -11,7 +11,15 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.harness.runner import EXECUTORS, default_threads, execute, method_label, plan, remaining
+from bench.harness.runner import (
+    EXECUTORS,
+    default_threads,
+    execute,
+    method_label,
+    plan,
+    remaining,
+    usable_cores,
+)
 from bench.harness.suites import evaluation_protocols, get_suite
 from bench.method import canonical_params, resolve_target
 from bench.models import resolve_model
@@ -38,7 +46,7 @@ def add_parser(sub, name: str) -> None:
     p.add_argument("--suite", help="a named experiment (sets models, methods, budgets and "
                    "evaluation protocols; the options above override them)")
     p.add_argument("--out", help="run directory (default: reports/run-YYYYmmdd-HHMMSS)")
-    p.add_argument("--jobs", "-j", default=str(os.cpu_count() or 1), metavar="N",
+    p.add_argument("--jobs", "-j", default=str(usable_cores()), metavar="N",
                    help="worker processes, at least 1, here or in the LocalCluster of "
                    "--executor dask without --scheduler (default: CPU count)")
     p.add_argument("--threads", metavar="T",
@@ -159,11 +167,11 @@ def run(args) -> int:
     workers, timeout = whole_number(args.jobs, "--jobs"), _seconds(args.timeout, "--timeout")
     threads = whole_number(args.threads, "--threads") if args.threads else \
         default_threads(workers, args.scheduler)
-    cores = os.cpu_count() or 1
+    cores = usable_cores()
     if not args.scheduler and workers * threads > cores:
-        print(f"bench: --jobs {workers} x --threads {threads} is more threads than the "
-              f"{cores} cores here: jobs compete for them and their times grow",
-              file=sys.stderr)
+        print(f"bench: --jobs {workers} x {threads} thread{'s' if threads > 1 else ''} per job"
+              f"{'' if args.threads else ' (the least)'} is more than the {cores} cores here: "
+              "jobs compete for them and their times grow", file=sys.stderr)
     faces = _budgets(args.faces, "--faces", lambda t: whole_number(t, "--faces"))
     ratios = _budgets(args.ratios, "--ratios", _ratio)
     out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")

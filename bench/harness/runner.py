@@ -108,14 +108,23 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
     return records
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity, which ``taskset`` and
+    container limits narrow), not all the machine has."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # no affinity on this system
+        return os.cpu_count() or 1
+
+
 def default_threads(workers: int, scheduler: str | None = None) -> int:
-    """Threads per job when ``bench run`` is not told: this machine's cores shared by its
-    ``workers`` job processes (jobs x threads <= cores, at least 1 each); 1 on a Dask
+    """Threads per job when ``bench run`` is not told: this machine's usable cores
+    (:func:`usable_cores`) shared by its ``workers`` job processes (jobs x threads <= cores, at least 1 each); 1 on a Dask
     scheduler's workers, whose machines this one does not know (each worker thread runs a
     job; --threads gives a job more)."""
     if scheduler:
         return 1
-    return max(1, (os.cpu_count() or 1) // max(1, workers))
+    return max(1, usable_cores() // max(1, workers))
 
 
 def _group(job: Job) -> tuple[str, str]:
