@@ -33,9 +33,12 @@ The penalty's units (``canny_units``), where the paper is open:
   ratio (:func:`methods.engine.simplify._canny_units`). At weight 1, an edge of average
   area that crosses a border costs one average collapse more; larger faces more, in
   proportion to their area, as equation 2 says. Penalty and base cost then scale
-  together: resizing the mesh or changing the working diagonal
-  (:data:`methods.engine.simplify.WORKING_DIAGONAL`) chooses the same collapses
-  (``tests/test_engine_methods.py``). The unit is fixed once, so during the
+  together: with a geometric base (``texture_weight=0``, or ``base="memoryless"``)
+  changing the working diagonal (:data:`methods.engine.simplify.WORKING_DIAGONAL`),
+  which version 4 depended on, chooses the same collapses
+  (``tests/test_engine_methods.py``). The default base's texture quadrics add UV
+  distances to lengths, so that base's own choices move with the normalisation,
+  penalty or not. The unit is fixed once, so during the
   simplification the penalty and the base cost evolve as equation 2's terms do in fixed
   units: areas grow as faces are removed, accumulated quadrics grow faster, and the
   penalty matters most in the first half of the collapses, the range the paper shows.
@@ -45,8 +48,11 @@ The penalty's units (``canny_units``), where the paper is open:
   unit diagonal, kept to compare with (the ``g2007`` suite runs both).
 
 The statistics give the crossing edges before and after (``crossing_share_*``, of the
-welded edges) and the measured unit (``canny_base_cost``: c̄; 0 when none was
-measured).
+welded edges) and, with ``canny_units="base-cost"`` and a non-zero weight, the measured
+unit: ``canny_base_cost`` (c̄; 0 when the costs were rounding noise),
+``canny_cost_noise`` (the magnitude of the most negative initial cost, the rounding
+noise) and ``canny_edges_costed`` (the edges with a finite initial cost, over which c̄
+and r̄ are means).
 """
 
 from __future__ import annotations

@@ -113,25 +113,47 @@ def test_canny_texture_choices_do_not_depend_on_scale(units, same, bunny_texture
     assert all(unchanged) == same, unchanged
 
 
-def test_canny_texture_penalty_is_one_mean_cost_per_mean_area(bunny_textured):
-    """canny_units="base-cost": an edge of the mean face area that crosses a border
-    costs the mean initial base cost more (methods.engine.simplify._canny_units)."""
+def _measured_units(mesh):
+    """The engine's inputs for canny-texture (base-cost units, texture quadrics) on
+    ``mesh``, and what :func:`_canny_units` measures: (arrays, terms, scaled terms,
+    statistics, initial base costs, areas of each edge's faces)."""
     from methods.engine.canny import texture_borders
     from methods.engine.loop import initial_costs
     from methods.engine.policy import Policy
-    from methods.engine.simplify import (_canny_units, _image_state, _prepare, _quadrics,
-                                         _rules, _terms)
+    from methods.engine.simplify import (
+        _canny_units,
+        _image_state,
+        _prepare,
+        _quadrics,
+        _rules,
+        _terms,
+    )
     from methods.engine.state import new_scratch
-
     policy = Policy(canny_weight=1.0, canny_units="base-cost", texture_weight=1.0)
-    prep = _prepare(bunny_textured, policy, None)
-    arrays = _quadrics(bunny_textured, policy, prep)
-    rules = _rules(bunny_textured, policy, None, prep, 1, False, None)
-    terms = _terms(policy, prep, texture_borders(bunny_textured.texture), rules)
-    images = _image_state(bunny_textured, None, arrays, prep, True)
+    prep = _prepare(mesh, policy, None)
+    arrays = _quadrics(mesh, policy, prep)
+    rules = _rules(mesh, policy, None, prep, 1, False, None)
+    terms = _terms(policy, prep, texture_borders(mesh.texture), rules)
+    images = _image_state(mesh, None, arrays, prep, True)
     scaled, stats = _canny_units(arrays, rules, terms, images)
     base = rules._replace(weights=rules.weights._replace(canny=0.0))
     costs, areas = initial_costs(arrays, base, terms, new_scratch(len(arrays.P)), images)
+    return arrays, terms, scaled, stats, costs, areas
+
+
+def test_canny_texture_penalty_is_one_mean_cost_per_mean_area(bunny_textured):
+    """canny_units="base-cost": an edge of the mean face area that crosses a border
+    costs the mean initial base cost more (methods.engine.simplify._canny_units)."""
+    arrays, terms, scaled, stats, costs, areas = _measured_units(bunny_textured)
+    # every welded edge once, as the loop queues them: an oracle from the faces alone
+    F = arrays.F[arrays.falive]
+    edges = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    assert len(costs) == len(areas) == len(np.unique(edges, axis=0))
+    # the areas of each edge's faces sum to three times the mesh's (each face has three)
+    P = arrays.P
+    total = 0.5 * np.linalg.norm(np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]),
+                                 axis=1).sum()
+    assert areas.sum() == pytest.approx(3 * total, rel=1e-9)
     finite = np.isfinite(costs)
     assert finite.sum() == stats["canny_edges_costed"] > 0.9 * len(costs)
     assert stats["canny_base_cost"] == pytest.approx(costs[finite].mean(), rel=1e-12)
@@ -147,7 +169,13 @@ def test_canny_texture_on_flat_faces_orders_by_area_ratio():
     its mean, a pure number."""
     from bench.models import resolve_model
 
+
     crate = resolve_model("crate")
     result = _canny_faces(crate, 300)
     assert result.stats["canny_base_cost"] == 0.0
     assert result.stats["canny_cost_noise"] > 0.0
+    # the penalty is r_e / r̄: an edge of the mean area that crosses a border costs 1
+    _, _, scaled, stats, costs, areas = _measured_units(crate)
+    assert stats["canny_base_cost"] == 0.0
+    assert scaled.canny_per_area * areas[np.isfinite(costs)].mean() == pytest.approx(1.0,
+                                                                                    rel=1e-12)

@@ -4,8 +4,6 @@ seam and boundary rules."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -32,7 +30,7 @@ from methods.engine.policy import (
 )
 from methods.engine.quadrics import _add_reduced, _group_quadric, _optimal_point, quadric_error
 from methods.engine.state import QUADRIC_SIZE
-from methods.engine.topology import _edge_faces, _gather_profile, _normal
+from methods.engine.topology import _edge_faces, _faces_area, _gather_profile
 from methods.engine.wedges import (
     _edge_parameter,
     _is_seam_edge,
@@ -228,18 +226,13 @@ def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, pe
     that ratio in the base cost's units (``Terms.canny_per_area``)."""
     k = _edge_faces(a, b, F, vhead, cnext, falive, efaces)
     h, w = borders.shape
-    crossing = False
-    area = 0.0
     for i in range(min(k, efaces.shape[0])):
-        f = efaces[i]
-        wa, wb = corner_wedges(F, FW, f, a, b)
-        if not crossing:
-            _, hit = _walk(uv[wa, 0] * w, uv[wa, 1] * h, uv[wb, 0] * w, uv[wb, 1] * h,
-                           borders, no_record)
-            crossing = hit
-        n = _normal(P[F[f, 0]], P[F[f, 1]], P[F[f, 2]])
-        area += 0.5 * math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
-    return area * per_area if crossing else 0.0
+        wa, wb = corner_wedges(F, FW, efaces[i], a, b)
+        _, hit = _walk(uv[wa, 0] * w, uv[wa, 1] * h, uv[wb, 0] * w, uv[wb, 1] * h,
+                       borders, no_record)
+        if hit:
+            return _faces_area(k, efaces, P, F) * per_area
+    return 0.0
 
 
 @njit(cache=True)

@@ -16,7 +16,6 @@ Every helper takes a few named structures of :mod:`methods.engine.state`.
 from __future__ import annotations
 
 import heapq
-import math
 
 import numpy as np
 from numba import njit, types
@@ -44,7 +43,14 @@ from methods.engine.state import (
     Log,
     Queue,
 )
-from methods.engine.topology import _check, _edge_faces, _neighbors, _normal, _third
+from methods.engine.topology import (
+    _candidate_edges,
+    _check,
+    _edge_faces,
+    _faces_area,
+    _neighbors,
+    _third,
+)
 from methods.imaging.counters import STAT_RUN_CYCLES, STAT_TILE_REBUILDS, cycles
 from methods.imaging.region import commit_geometry, commit_render
 from methods.imaging.tiles import TILE, build_tiles
@@ -76,19 +82,15 @@ def _remember(queue, rules, a, b, nv, cost):
 
 @njit(cache=True)
 def _collect_candidates(heap, mesh, rules, terms, scratch, images, queue):
-    """Cost every edge once (each interior edge from its smaller end, each boundary edge
-    from its only face) and queue it with stamps 0."""
-    F, nv = mesh.F, mesh.P.shape[0]
-    for f in range(F.shape[0]):
-        if not mesh.falive[f]:
-            continue
-        for j in range(3):
-            a, b = F[f, j], F[f, (j + 1) % 3]
-            if a < b or _edge_faces(a, b, F, mesh.vhead, mesh.cnext, mesh.falive,
-                                    scratch.efaces) == 1:
-                cost, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
-                _push(heap, cost, a, b, 0, 0, scratch.p, keep)
-                _remember(queue, rules, a, b, nv, cost)
+    """Cost every edge once (:func:`~methods.engine.topology._candidate_edges`) and
+    queue it with stamps 0."""
+    nv = mesh.P.shape[0]
+    edges = _candidate_edges(mesh, scratch.efaces)
+    for e in range(edges.shape[0]):
+        a, b = edges[e, 0], edges[e, 1]
+        cost, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
+        _push(heap, cost, a, b, 0, 0, scratch.p, keep)
+        _remember(queue, rules, a, b, nv, cost)
 
 
 @njit(cache=True)
@@ -98,26 +100,15 @@ def initial_costs(mesh, rules, terms, scratch, images):
     of each edge's faces: (costs (e,), areas (e,)). Nothing is queued or changed but
     ``scratch``; :func:`methods.engine.simplify._canny_units` measures the base cost's
     scale with it."""
-    F = mesh.F
-    n = 0
-    costs = np.empty(3 * F.shape[0])
-    areas = np.empty(3 * F.shape[0])
-    for f in range(F.shape[0]):
-        if not mesh.falive[f]:
-            continue
-        for j in range(3):
-            a, b = F[f, j], F[f, (j + 1) % 3]
-            k = _edge_faces(a, b, F, mesh.vhead, mesh.cnext, mesh.falive, scratch.efaces)
-            if a < b or k == 1:
-                area = 0.0
-                for i in range(min(k, scratch.efaces.shape[0])):
-                    g = scratch.efaces[i]
-                    nrm = _normal(mesh.P[F[g, 0]], mesh.P[F[g, 1]], mesh.P[F[g, 2]])
-                    area += 0.5 * math.sqrt(nrm[0] ** 2 + nrm[1] ** 2 + nrm[2] ** 2)
-                costs[n], _ = _evaluate(a, b, mesh, rules, terms, scratch, images)
-                areas[n] = area
-                n += 1
-    return costs[:n], areas[:n]
+    edges = _candidate_edges(mesh, scratch.efaces)
+    costs = np.empty(edges.shape[0])
+    areas = np.empty(edges.shape[0])
+    for e in range(edges.shape[0]):
+        a, b = edges[e, 0], edges[e, 1]
+        k = _edge_faces(a, b, mesh.F, mesh.vhead, mesh.cnext, mesh.falive, scratch.efaces)
+        areas[e] = _faces_area(k, scratch.efaces, mesh.P, mesh.F)
+        costs[e], _ = _evaluate(a, b, mesh, rules, terms, scratch, images)
+    return costs, areas
 
 
 @njit(cache=True)

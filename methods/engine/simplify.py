@@ -251,9 +251,10 @@ def _canny_units(arrays: MeshArrays, rules: Rules, terms: Terms, images) -> tupl
     the penalty is c̄ / ā (ā the mean a_e), and an edge of average area that crosses a
     border costs one average collapse more. Scaling the mesh by s multiplies a quadric
     cost by s⁴ (area-weighted squared distances), and so c̄ and the penalty, which is
-    c̄ times a pure number: cost and penalty keep their ratio whatever the mesh's size
-    or :data:`WORKING_DIAGONAL` (by a power of two, the chosen collapses are the same
-    to the bit).
+    c̄ times a pure number: with a geometric base cost (no texture quadrics, whose UV
+    terms do not scale with the mesh), cost and penalty keep their ratio whatever
+    :data:`WORKING_DIAGONAL` (by a power of two, the chosen collapses are the same to
+    the bit).
 
     A mesh whose base costs are all zero but for rounding (a box of flat faces with
     affine UVs: costs of ±1e-18 at unit diagonal) has no scale to measure. Base costs

@@ -74,6 +74,38 @@ def _edge_faces(u, v, F, vhead, cnext, falive, out):
 
 
 @njit(cache=True)
+def _faces_area(k, faces, P, F):
+    """The summed area of the first ``k`` faces listed in ``faces`` (at most its
+    length), added in list order."""
+    area = 0.0
+    for i in range(min(k, faces.shape[0])):
+        f = faces[i]
+        n = _normal(P[F[f, 0]], P[F[f, 1]], P[F[f, 2]])
+        area += 0.5 * math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
+    return area
+
+
+@njit(cache=True)
+def _candidate_edges(mesh, efaces):
+    """Every edge of the mesh once, as the loop first costs them: each interior edge
+    from its smaller end, each boundary edge from its only face, in face order;
+    ``(e, 2)`` int64 (``efaces`` is scratch)."""
+    F = mesh.F
+    edges = np.empty((3 * F.shape[0], 2), np.int64)
+    n = 0
+    for f in range(F.shape[0]):
+        if not mesh.falive[f]:
+            continue
+        for j in range(3):
+            a, b = F[f, j], F[f, (j + 1) % 3]
+            if a < b or _edge_faces(a, b, F, mesh.vhead, mesh.cnext, mesh.falive,
+                                    efaces) == 1:
+                edges[n, 0], edges[n, 1] = a, b
+                n += 1
+    return edges[:n]
+
+
+@njit(cache=True)
 def _third(F, f, a, b):
     for k in range(3):
         w = F[f, k]
