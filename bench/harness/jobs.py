@@ -364,17 +364,21 @@ def mesh_paths(key: str, model_hash: str) -> tuple[str, str]:
     return f"meshes/{key}.glb", f"meshes/original__{model_hash[:12]}.glb"
 
 
+#: The last original this process encoded, by file name: the pool gives a process jobs of
+#: the model it ran last where it can, and one entry bounds the memory (a scan of
+#: millions of faces is tens of MB as GLB).
 _ORIGINAL_MESHES: dict[str, bytes | str] = {}
 
 
 def _mesh_files(job: Job, original, simplified, result: JobResult) -> None:
     """The job's evaluated mesh (a view-dependent method's view-independent one) as a
-    GLB file, and the original's once per model (encoded once per process), each with
+    GLB file, and the original's (encoded once per model in a row), each with
     the normals the evaluation's Gouraud shading uses. A mesh that GLB cannot hold
     (coordinates beyond 32-bit floats) leaves the job ok, without that file, and the
     reason in the record's ``mesh_file_error``."""
     mine, theirs = mesh_paths(job.key, original.content_hash)
     if theirs not in _ORIGINAL_MESHES:
+        _ORIGINAL_MESHES.clear()
         _ORIGINAL_MESHES[theirs] = _glb(original, "original")
     data = _glb(simplified, "lod")
     errors = []
