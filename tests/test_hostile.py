@@ -722,7 +722,9 @@ def test_ctrl_c_prints_one_line_and_keeps_the_finished_records(tmp_path):
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
     assert err.splitlines()[-1] == "bench: interrupted; 1 records kept in out; --resume continues"
+    threads = len(os.sched_getaffinity(0))  # one job process: every usable core
     assert [line for line in err.splitlines() if line.startswith("bench:")] == [
-        "bench: 2 jobs (1 models x 2 methods x budgets x flat shading) with 1 workers -> out",
+        "bench: 2 jobs (1 models x 2 methods x budgets x flat shading) with 1 workers, "
+        f"{threads} thread{'s' if threads > 1 else ''} per job -> out",
         "bench: interrupted; 1 records kept in out; --resume continues"]
     assert _hashes(records) == kept
