@@ -19,6 +19,7 @@ import pytest
 
 from bench.errors import InputError
 from bench.harness.report import write_report
+from bench.harness.report_images import RunFiles, run_file
 from bench.harness.results import load_records, write_record, write_table
 from conftest import made_up_record as record
 from conftest import without_own_scripts
@@ -128,6 +129,31 @@ def test_images_are_not_written_through_a_link_out_of_the_run_folder(tmp_path):
     page = (run / "index.html").read_text()
     assert "&#x27;images/thumbs/ok.jpg&#x27;: its folder leaves the run folder" in page
     assert len(_warnings(proc)) == 1, proc.stderr
+
+
+@pytest.mark.parametrize("name", [".PNG", ".png", "images/.Png"])
+def test_a_file_named_only_its_suffix_is_refused(tmp_path, name):
+    """A dotfile called ``.PNG`` is no PNG file, whatever the case of its name; an
+    upper-case suffix after a name is one."""
+    run = tmp_path / "run"
+    for path in (run / name, run / "images" / "a.PNG"):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(_png())
+    refused = []
+    assert run_file(run, name, refused, "image", ".png", 1 << 20) is None
+    assert refused == [f"image {name!r}: not a .png file; not shown"]
+    assert run_file(run, "images/a.PNG", refused, "image", ".png", 1 << 20) == (
+        _png(), "images/a.PNG")
+
+
+@pytest.mark.parametrize("name", ["a/../../x.js", "../x.js", "/tmp/x.js"])
+def test_the_report_writes_no_file_named_out_of_the_run_folder(tmp_path, name):
+    run = tmp_path / "run"
+    run.mkdir()
+    refused = []
+    assert RunFiles(run, refused).file(name, b"x") == ""
+    assert refused == [f"{name!r}: not a path inside the run folder; not written"]
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["run"]
 
 
 def _png() -> bytes:

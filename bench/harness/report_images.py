@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import base64
 import io
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import NamedTuple
 from urllib.parse import quote
 
@@ -108,7 +108,8 @@ def run_file(run_dir: Path, relative, refused: list[str] | None, what: str, suff
     if Path(relative).is_absolute() or not resolved.is_relative_to(root):
         refuse("outside the run folder")
         return None
-    if not resolved.name.lower().endswith(suffix) or resolved.name == suffix:
+    name = resolved.name
+    if not name.lower().endswith(suffix) or len(name) == len(suffix):  # ".PNG" is no PNG
         refuse(f"not a {suffix} file")
         return None
     try:
@@ -249,9 +250,15 @@ class RunFiles:
         return "images/thumbs/" + str(Path(_under_images(path)).with_suffix(".jpg"))
 
     def file(self, relative: str, data: bytes) -> str:
-        """Write ``data`` as the run folder's file ``relative`` (a name the report makes,
-        never a record's string); its URL, or "" when it could not be written (the
-        reason is in ``refused``)."""
+        """Write ``data`` as the run folder's file ``relative``: a name the report makes,
+        either of its own or from the path of a file the run folder holds (as
+        :func:`run_file` hands it back: relative to the resolved run folder, no ``..``),
+        never a record's string as it is. Its URL, or "" when it was not written (the
+        reason is in ``refused``): a name that is absolute or holds ``..`` is refused,
+        and so is a folder that a link takes out of the run folder."""
+        if PurePosixPath(relative).is_absolute() or ".." in PurePosixPath(relative).parts:
+            self.refused.append(f"{relative!r}: not a path inside the run folder; not written")
+            return ""
         return _url(relative) if self._write(relative, data) else ""
 
     def _write(self, relative: str, data: bytes) -> bool:
