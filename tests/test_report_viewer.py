@@ -11,9 +11,11 @@ from __future__ import annotations
 import base64
 import hashlib
 import json
+import posixpath
 import re
 import struct
 from pathlib import Path
+from urllib.parse import unquote
 
 import numpy as np
 import pytest
@@ -21,7 +23,7 @@ import trimesh
 
 from bench.harness.jobs import Job, JobResult, _mesh_files, mesh_paths, store_result
 from bench.harness.report import write_report
-from bench.harness.report_viewer import VIEWER_SCRIPT, glb_problem
+from bench.harness.report_viewer import VIEWER_SCRIPT, glb_problem, wrapper_path
 from bench.harness.results import load_records, write_record
 from bench.io.meshio import glb_bytes, load_mesh
 from bench.mesh import Mesh
@@ -252,3 +254,76 @@ def test_wrappers_are_not_written_through_a_link_out_of_the_run_folder(tmp_path)
     page = (run / "index.html").read_text()
     assert "&#x27;meshes/js/q-80.glb.js&#x27;: its folder leaves the run folder" in page
     assert "No 3D meshes for this model" in page
+
+
+def test_the_download_links_are_the_checked_paths_not_the_keys(tmp_path):
+    """A link inside the run folder (``meshes/a`` -> ``p/q/r``) and a job key with
+    ``..``: Python follows the link before ``..`` (the GLB is ``x.glb``, inside), a
+    browser drops ``..`` textually (``meshes/a/../../../x.glb`` is ``../x.glb``,
+    outside). Every file the view names is the checked path, inside as a browser reads
+    it."""
+    digest = "67" * 20
+    r = _lod_record("q", 80, digest)
+    r["job"]["key"] = "a/../../../x"
+    run = _run(tmp_path, [r], {"x.glb": _glb(icosphere(1)),
+                               f"meshes/original__{digest[:12]}.glb": _glb(icosphere(2))})
+    (run / "p" / "q" / "r").mkdir(parents=True)
+    (run / "meshes" / "a").symlink_to(run / "p" / "q" / "r")
+    write_report(run)
+    page = (run / "index.html").read_text()
+    assert page.count("<div class='viewer3d'") == 1
+    named = _viewer_files(page)
+    assert "x.glb" in named
+    for name in named:
+        text = posixpath.normpath(unquote(name))  # as a browser resolves it
+        assert not text.startswith("../") and not text.startswith("/"), name
+        assert (run / text).is_file(), name
+
+
+def test_two_glbs_never_share_a_wrapper(tmp_path):
+    """``meshes/_/x.glb`` and ``x.glb`` (beside ``meshes/``) get wrappers of their own,
+    each holding its GLB under its id."""
+    digest = "89" * 20
+    inside, beside = _lod_record("q", 80, digest), _lod_record("q", 20, digest)
+    inside["job"]["key"], beside["job"]["key"] = "_/x", "../x"
+    meshes = {"meshes/_/x.glb": _glb(icosphere(1)), "x.glb": _glb(icosphere(2)),
+              f"meshes/original__{digest[:12]}.glb": _glb(icosphere(2))}
+    run = _run(tmp_path, [inside, beside], meshes)
+    write_report(run)
+    page = (run / "index.html").read_text()
+    options = re.findall(r"data-lod='([^']*)' data-lod-id='([0-9a-f]{16})' "
+                         r"data-lod-glb='([^']*)'", page)
+    assert [glb for _, _, glb in options] == ["meshes/_/x.glb", "x.glb"]
+    assert len({url for url, _, _ in options}) == 2
+    for url, ident, glb in options:
+        wrapper = (run / unquote(url)).read_text()
+        text = re.fullmatch(rf'\(window\.benchGlb=window\.benchGlb\|\|\{{\}}\)\["{ident}"\]'
+                            r'="([A-Za-z0-9+/=]*)";\n', wrapper).group(1)
+        assert base64.b64decode(text) == meshes[glb]
+
+
+def test_wrapper_names_cannot_collide():
+    paths = ["meshes/x.glb", "meshes/_/x.glb", "x.glb", "_/x.glb", "meshes/_/_/x.glb",
+             "_/_/x.glb", "meshes/js/x.glb", "js/x.glb", "meshes/__/x.glb", "meshes/_x.glb"]
+    names = [wrapper_path(p) for p in paths]
+    assert len(set(names)) == len(paths)
+    assert all(n.startswith("meshes/js/") and n.endswith(".glb.js") for n in names)
+    assert wrapper_path("meshes/q-80.glb") == "meshes/js/q-80.glb.js"
+
+
+def test_only_the_pages_with_a_view_load_its_script(tmp_path):
+    """A split report (over 50 jobs): the page of the model with meshes loads the
+    view's script, the other model's page and the index do not."""
+    digest = "ab" * 20
+    shown = _lod_record("q", 80, digest)
+    shown["job"]["model"] = shown["model"]["name"] = "shown"
+    others = [record(label=f"q{i}", model="bare") for i in range(50)]
+    run = _run(tmp_path, [shown, *others],
+               {"meshes/q-80.glb": _glb(icosphere(1)),
+                f"meshes/original__{digest[:12]}.glb": _glb(icosphere(2))})
+    write_report(run)
+    pages = {p.name: p.read_text() for p in run.glob("*.html")}
+    assert sorted(pages) == ["index.html", "model-bare.html", "model-shown.html"]
+    assert pages["model-shown.html"].count(VIEWER_SCRIPT) == 1
+    assert "<div class='viewer3d'" in pages["model-shown.html"]
+    assert VIEWER_SCRIPT not in pages["model-bare.html"] and VIEWER_SCRIPT not in pages["index.html"]

@@ -143,7 +143,8 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
     summary = ["<h2>Summary</h2>", summary_html(_summary_table(table), records, links)]
     if split:
         for m in models:
-            write_atomic(run_dir / links[m], _model_page(run_dir, m, sections[m], records))
+            write_atomic(run_dir / links[m], _model_page(run_dir, m, sections[m], records,
+                                                         _viewer_scripts(viewers, slugs[m])))
         body = [*summary, _model_list(models, links, table),
                 "<h2>Failures</h2>", _failures(records)]
     else:
@@ -152,7 +153,7 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
     page = html_page(f"bench report: {_esc(run_dir.name)}",
                      [f"<h1>Simplification benchmark: {_esc(run_dir.name)}</h1>",
                       _warnings_html(notes + refused), _protocol_note(records), *body],
-                     _viewer_scripts(body))
+                     [] if split else _viewer_scripts(viewers))
     return write_atomic(run_dir / "index.html", page)
 
 
@@ -164,20 +165,27 @@ def html_page(title: str, parts: list[str], scripts: list[str] | tuple = ()) -> 
     return "\n".join([head, *parts, SCRIPT, GRID_SCRIPT, *scripts, "</body></html>"])
 
 
-def _viewer_scripts(parts: list[str]) -> list[str]:
-    """The 3D view's script, for a page whose ``parts`` hold a 3D view."""
-    return [VIEWER_SCRIPT] if any("<div class='viewer3d'" in p for p in parts) else []
+def _viewer_scripts(viewers: Viewers | None, slug: str | None = None) -> list[str]:
+    """The 3D view's script, for a page that holds a 3D view: the whole report's page
+    (``slug`` None) when some model's section has one, a model's page (``slug`` its
+    slug) when that model's section has one."""
+    if viewers is None:
+        return []
+    wanted = viewers.used if slug is None else slug in viewers.shown
+    return [VIEWER_SCRIPT] if wanted else []
 
 
-def _model_page(run_dir: Path, model: str, section: list[str], records: list[dict]) -> str:
-    """The page of one model in a split report: its section and its timing table."""
+def _model_page(run_dir: Path, model: str, section: list[str], records: list[dict],
+                scripts: list[str]) -> str:
+    """The page of one model in a split report: its section and its timing table, then
+    ``scripts``."""
     own = [r for r in records if r["job"]["model"] == model]
     return html_page(f"bench report: {_esc(run_dir.name)} / {_esc(model)}",
                      [f"<p><a href='index.html'>← summary of {_esc(run_dir.name)}</a></p>",
                       f"<h1>Simplification benchmark: {_esc(run_dir.name)}, {_esc(model)}</h1>",
                       _protocol_note(own), *section,
                       "<h2>Timing</h2>", _timing(own)],
-                     _viewer_scripts(section))
+                     scripts)
 
 
 def _model_list(models: list[str], links: dict[str, str], table) -> str:

@@ -10,9 +10,9 @@ classic ``<script src>`` files, so:
   ``bench/harness/vendor/three/``; the report copies it to ``vendor/three.min.js``
   (with its licence beside it) and loads it when a reader first opens a view;
 - each GLB that passes :func:`run_glb` is wrapped in a classic script,
-  ``meshes/js/<name>.glb.js``, that stores its bytes (base64) under an id in
-  ``window.benchGlb``; the view inserts that script when its LOD is chosen and hands
-  the bytes to ``GLTFLoader.parse``.
+  ``meshes/js/<name>.glb.js`` (:func:`wrapper_path`), that stores its bytes (base64)
+  under an id in ``window.benchGlb``; the view inserts that script when its LOD is
+  chosen and hands the bytes to ``GLTFLoader.parse``.
 
 The page holds only the selector and the file names (:func:`viewer_section`); the
 script (:data:`VIEWER_SCRIPT`, vanilla JavaScript, inline) draws both meshes in one
@@ -30,8 +30,10 @@ WebGL unavailable, a file missing — as text in the page.
 
 A run folder is someone else's data: a GLB is wrapped only when it lies inside the run
 folder, is a whole glTF 2 binary file and refers to no file or address outside itself
-(no ``uri`` in its buffers or images); the wrapper's id is a hash, and every string
-from a record reaches the page HTML-escaped.
+(no ``uri`` in its buffers or images); its wrapper and its download link are named
+after its checked path (resolved: a link in the run folder and a ``..`` in a job key
+cannot take a browser, which drops ``..`` textually, elsewhere), the wrapper's id is a
+hash, and every string from a record reaches the page HTML-escaped.
 """
 
 from __future__ import annotations
@@ -48,7 +50,8 @@ from typing import NamedTuple
 from bench.harness.report_images import run_file
 from bench.harness.report_table import esc
 
-__all__ = ["MAX_MESH_BYTES", "VIEWER_SCRIPT", "Glb", "Viewers", "run_glb", "single_file_note"]
+__all__ = ["MAX_MESH_BYTES", "VIEWER_SCRIPT", "Glb", "Viewers", "run_glb", "single_file_note",
+           "wrapper_path"]
 
 #: Largest GLB shown (the 56k-face bunny is 1.4 MB; a 2M-face scan about 50 MB).
 MAX_MESH_BYTES = 256 << 20
@@ -126,18 +129,38 @@ def single_file_note(records: list[dict]) -> str:
             "<code>bench report DIR</code> without <code>--single-file</code> shows it.</p>")
 
 
+class _Wrapped(NamedTuple):
+    """A GLB of the run folder as the view names it: its wrapper's URL and id, and the
+    URL of the GLB itself (the download link)."""
+
+    url: str
+    ident: str
+    glb: str
+
+
+def wrapper_path(path: str) -> str:
+    """Where the script wrapper of the run folder's GLB ``path`` (relative to the run
+    folder, no ``..``) goes: ``meshes/<name>`` wraps as ``meshes/js/<name>.js``, any
+    other GLB — and one under ``meshes/_/``, so that no two paths share a wrapper — as
+    ``meshes/js/_/<path>.js``."""
+    if path.startswith("meshes/") and not path.startswith("meshes/_/"):
+        return f"meshes/js/{path.removeprefix('meshes/')}.js"
+    return f"meshes/js/_/{path}.js"
+
+
 class Viewers:
     """The 3D views of one report build: writes each GLB's script wrapper and the
     three.js bundle into the run folder once, through ``out``
     (:class:`~bench.harness.report_images.RunFiles`); what cannot be shown is noted in
-    ``refused``. :attr:`used` says whether some page needs :data:`VIEWER_SCRIPT`."""
+    ``refused``. :attr:`shown` holds the slugs of the models whose section holds a
+    view, :attr:`used` whether any does: the pages that need :data:`VIEWER_SCRIPT`."""
 
     def __init__(self, run_dir: Path, out, refused: list[str]):
         self.run_dir = Path(run_dir)
         self.out = out
         self.refused = refused
-        self.used = False
-        self._wrapped: dict[str, tuple[str, str] | None] = {}
+        self.shown: set[str] = set()
+        self._wrapped: dict[str, _Wrapped | None] = {}
         self._three: str | None = None
 
     def _bundle(self) -> str:
@@ -158,21 +181,27 @@ class Viewers:
                 self.out.file(_THREE_LICENSE_URL, licence)
         return self._three
 
-    def _wrap(self, relative: str) -> tuple[str, str] | None:
-        """(URL of its script wrapper, its id) of the GLB ``relative`` of the run
-        folder, written once per report; None when it is absent or refused."""
+    @property
+    def used(self) -> bool:
+        """Whether some model's section holds a 3D view."""
+        return bool(self.shown)
+
+    def _wrap(self, relative: str) -> _Wrapped | None:
+        """The script wrapper of the GLB ``relative`` of the run folder, written once per
+        report; None when it is absent or refused. Its URL, its id and the GLB's own URL
+        are all made from the checked path (resolved, inside the run folder), never from
+        ``relative``, whose ``..`` a browser would resolve differently (textually, not
+        after following links)."""
         if relative not in self._wrapped:
             glb = run_glb(self.run_dir, relative, self.refused)
             self._wrapped[relative] = None
             if glb is not None:
                 ident = hashlib.sha1(glb.path.encode()).hexdigest()[:16]
-                under = glb.path.removeprefix("meshes/") if glb.path.startswith("meshes/") \
-                    else "_/" + glb.path
                 text = (f'(window.benchGlb=window.benchGlb||{{}})["{ident}"]="'
                         f'{base64.b64encode(glb.data).decode()}";\n')
-                url = self.out.file(f"meshes/js/{under}.js", text.encode())
+                url = self.out.file(wrapper_path(glb.path), text.encode())
                 if url:
-                    self._wrapped[relative] = (url, ident)
+                    self._wrapped[relative] = _Wrapped(url, ident, _quote(glb.path))
         return self._wrapped[relative]
 
     def section(self, records: list[dict], keys: dict, slug: str,
@@ -203,9 +232,9 @@ class Viewers:
                     else "no mesh file in the run folder"
                 options.append(f"<option disabled>{esc(text)}: {esc(why)}</option>")
                 continue
-            attrs = {"lod": lod[0], "lod-id": lod[1], "lod-glb": _quote(mine),
-                     "original": original[0], "original-id": original[1],
-                     "original-glb": _quote(theirs),
+            attrs = {"lod": lod.url, "lod-id": lod.ident, "lod-glb": lod.glb,
+                     "original": original.url, "original-id": original.ident,
+                     "original-glb": original.glb,
                      "faces": _count(faces, ""), "original-faces": _count(r["model"].get("faces"), ""),
                      "shading": "flat" if shading.startswith("flat") else "smooth"}
             data = "".join(f" data-{k}='{esc(v)}'" for k, v in attrs.items())
@@ -218,7 +247,7 @@ class Viewers:
         three = self._bundle()
         if not three:
             return ""
-        self.used = True
+        self.shown.add(slug)
         return (
             f"<h3>3D view</h3><div class='viewer3d' id='view3d-{slug}' data-model='{slug}' "
             f"data-three='{three}' data-status='closed'>"
