@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import posixpath
 import shutil
 import subprocess
 import sys
@@ -44,21 +45,16 @@ def _bench(*args, cwd) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=600, check=False)
 
 
-def _chromium(profile: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu",
-                           "--disable-quic", "--no-first-run", "--disable-background-networking",
-                           "--disable-component-update", "--disable-sync",
-                           f"--user-data-dir={profile}", *args],
-                          capture_output=True, text=True, timeout=120, check=True)
-
-
 #: WebGL on Chromium's software renderer, asked for explicitly (its automatic fallback
 #: is deprecated); without --disable-gpu, which the 3D view must not be given.
 WEBGL = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader")
 
 
-def _chromium_webgl(profile: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["chromium", "--headless", "--no-sandbox", *WEBGL,
+def _chromium(profile: Path, *args: str, webgl: bool = False) -> subprocess.CompletedProcess:
+    """Headless Chromium with ``args``; ``webgl``: with WebGL (SwiftShader) instead of
+    no GPU at all."""
+    gpu = WEBGL if webgl else ("--disable-gpu",)
+    return subprocess.run(["chromium", "--headless", "--no-sandbox", *gpu,
                            "--disable-quic", "--no-first-run", "--disable-background-networking",
                            "--disable-component-update", "--disable-sync",
                            f"--user-data-dir={profile}", *args],
@@ -107,6 +103,8 @@ def _target(run: Path, page: Path, url: str) -> Path:
     assert not parts.scheme and not parts.netloc, url  # no data:, no network
     path = (page.parent / unquote(parts.path)).resolve()
     assert path.is_relative_to(run.resolve()), url
+    # ... as a browser reads it too: ".." dropped textually, links not followed
+    assert not posixpath.normpath(unquote(parts.path)).startswith(("../", "/")), url
     return path
 
 
@@ -254,13 +252,14 @@ def test_the_3d_view_draws_the_chosen_lod_from_disk(run, tmp_path):
     assert _target(run, page, closed["data-three"]).is_file()
 
     fragment = f"#view3d={closed['data-model']}&lod=1"
-    text = _chromium_webgl(tmp_path / "profile", "--virtual-time-budget=30000", "--dump-dom",
-                           page.as_uri() + fragment).stdout
+    text = _chromium(tmp_path / "profile", "--virtual-time-budget=30000", "--dump-dom",
+                     page.as_uri() + fragment, webgl=True).stdout
     dom = _Dom(text)
     view = _viewer(dom)
     assert view["data-status"] == "ready", text[text.index("v3d-status"):][:400]
     assert int(view["data-faces"]) == faces[60]
     assert int(view["data-original-faces"]) == 320
+    assert (view["data-shading"], view["data-wireframe"]) == ("flat", "false")
     assert len(dom.all("canvas")) == 1
     assert not [a for a in dom.all("pre") if a.get("id") == "script-errors"]
     assert "triangles drawn" in text
@@ -269,8 +268,8 @@ def test_the_3d_view_draws_the_chosen_lod_from_disk(run, tmp_path):
     # the whole page in one window (headless Chromium's screenshot of a page scrolled to
     # the view came out blank), then the view cut out of it
     shot = tmp_path / "page-with-3d-view.png"
-    _chromium_webgl(tmp_path / "profile", "--virtual-time-budget=30000",
-                    "--window-size=1200,6000", f"--screenshot={shot}", page.as_uri() + fragment)
+    _chromium(tmp_path / "profile", "--virtual-time-budget=30000", "--window-size=1200,6000",
+              f"--screenshot={shot}", page.as_uri() + fragment, webgl=True)
     from PIL import Image
 
     pixels = np.asarray(Image.open(shot).convert("RGB")).astype(int)
@@ -287,6 +286,41 @@ def test_the_3d_view_draws_the_chosen_lod_from_disk(run, tmp_path):
         assert lit.mean() > 0.05
 
 
+def test_the_3d_view_starts_in_the_chosen_jobs_shading(run, tmp_path):
+    """A run with flat and Gouraud jobs (a copy of the module's run, resumed with one
+    Gouraud job): the view starts in the shading the LOD the address picks was evaluated
+    with, not the first entry's; ``&shading=`` still overrides it. The address is read
+    as key=value pairs: a malformed % escape does not stop the view, and a value holding
+    "wireframe" is no ``wireframe`` key."""
+    folder = tmp_path / "run"
+    shutil.copytree(run, folder)
+    proc = _bench("run", "--models", "ico.obj", "--methods", "qslim", "--faces", "60",
+                  "--shading", "gouraud", "--jobs", "1", "--resume", "--out", folder,
+                  cwd=run.parent)
+    assert proc.returncode == 1 and "2 of 5 jobs failed" in proc.stderr, proc.stderr  # raise's
+    page = folder / "index.html"
+    static = _Dom(page.read_text())
+    model = _viewer(static)["data-model"]
+    lods = [o for o in static.all("option") if "data-lod" in o]
+    shadings = [o["data-shading"] for o in lods]
+    assert shadings[0] == "flat" and sorted(shadings) == ["flat", "flat", "smooth"]
+    smooth, flat = shadings.index("smooth"), len(shadings) - 1 - shadings[::-1].index("flat")
+    cases = {  # address: (LOD, shading, wireframe)
+        f"#view3d={model}&lod={smooth}&note=wireframe-cube": (smooth, "smooth", "false"),
+        f"#view3d={model}&lod={smooth}&shading=flat": (smooth, "flat", "false"),
+        f"#x=%E0%A4%A&view3d=%{model}&lod={flat}&wireframe": (flat, "flat", "true"),
+    }
+    for fragment, (lod, shading, wire) in cases.items():
+        text = _chromium(tmp_path / "profile", "--virtual-time-budget=30000", "--dump-dom",
+                         page.as_uri() + fragment, webgl=True).stdout
+        dom = _Dom(text)
+        view = _viewer(dom)
+        assert view["data-status"] == "ready", (fragment, text[text.index("v3d-status"):][:400])
+        assert view["data-faces"] == lods[lod]["data-faces"], fragment
+        assert (view["data-shading"], view["data-wireframe"]) == (shading, wire), fragment
+        assert not [a for a in dom.all("pre") if a.get("id") == "script-errors"], fragment
+
+
 @pytest.mark.parametrize("broken", ["no three.js", "no WebGL"])
 def test_the_3d_view_says_why_it_cannot_draw(run, tmp_path, broken):
     """A missing library or a browser without WebGL: the reason in the page, as text."""
@@ -297,8 +331,8 @@ def test_the_3d_view_says_why_it_cannot_draw(run, tmp_path, broken):
         (folder / "vendor" / "three.min.js").unlink()
     page = folder / "index.html"
     model = _viewer(_Dom(page.read_text()))["data-model"]
-    text = _chromium_webgl(tmp_path / "profile", *flags, "--virtual-time-budget=20000",
-                           "--dump-dom", page.as_uri() + f"#view3d={model}").stdout
+    text = _chromium(tmp_path / "profile", *flags, "--virtual-time-budget=20000",
+                     "--dump-dom", page.as_uri() + f"#view3d={model}", webgl=True).stdout
     view = _viewer(_Dom(text))
     assert view["data-status"] == "error"
     status = text[text.index("v3d-status"):][:300]

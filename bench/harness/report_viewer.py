@@ -20,12 +20,16 @@ WebGL canvas with two viewports and one camera: a Lambert material (ambient 0.1,
 diffuse 0.9, white unless textured), two-sided, a point light at the eye and a 50 %
 gray background as the protocol renders; flat (face normals) or smooth shading (the
 vertex normals the evaluation's Gouraud shading uses, written into the GLB),
-textured or not, a wireframe overlay. A view starts on a click, or on opening the page
-with ``#view3d=<model slug>`` (scrolled into view; ``&lod=N`` picks the Nth entry,
-``&shading=smooth`` and ``&wireframe`` set those); opening one closes any other, so a
-page holds one WebGL context at most. It writes what it shows into
+textured or not, a wireframe overlay. It starts in the shading the chosen LOD's job was
+evaluated with (set again when the LOD changes while the view is closed; once it is open,
+the reader's choice stays). A view starts on a click,
+or on opening the page with ``#view3d=<model slug>`` (scrolled into view; ``&lod=N``
+picks the entry N, counted from 0, ``&shading=smooth`` and ``&wireframe`` set those:
+the fragment is read as ``&``-separated keys and values); opening one closes any other,
+so a page holds one WebGL context at most. It writes what it shows into
 attributes of its ``div.viewer3d`` (``data-status`` loading/ready/error,
-``data-faces`` and ``data-original-faces``, the triangles drawn) and every failure —
+``data-faces`` and ``data-original-faces``, the triangles drawn, ``data-shading`` and
+``data-wireframe``) and every failure —
 WebGL unavailable, a file missing — as text in the page.
 
 A run folder is someone else's data: a GLB is wrapped only when it lies inside the run
@@ -338,15 +342,21 @@ VIEWER_SCRIPT = """<script>/* bench report: 3D view of the LODs */
     this.root = root; this.lod = q(".v3d-lod"); this.shading = q(".v3d-shading");
     this.texture = q(".v3d-texture"); this.wire = q(".v3d-wire"); this.stage = q(".v3d-stage");
     this.status = q(".v3d-status"); this.caption = q(".v3d-caption"); this.token = 0;
-    var self = this, option = this.lod.options[this.lod.selectedIndex];
-    if (option) this.shading.value = option.getAttribute("data-shading") || "flat";
+    var self = this;
+    this.syncShading();
     q(".v3d-open").addEventListener("click", function () { self.open(); });
-    this.lod.addEventListener("change", function () { if (self.renderer) self.show(); });
+    this.lod.addEventListener("change", function () {  /* open: keep the reader's shading */
+      if (self.renderer) self.show(); else self.syncShading();
+    });
     [this.shading, this.texture, this.wire].forEach(function (c) {
       c.addEventListener("change", function () { if (self.renderer) { self.restyle(); self.draw(); } });
     });
     this.resize = function () { self.layout(); self.draw(); };
   }
+  Viewer.prototype.syncShading = function () {  /* the shading the chosen job was evaluated with */
+    var option = this.lod.options[this.lod.selectedIndex];
+    if (option && option.getAttribute("data-shading")) this.shading.value = option.getAttribute("data-shading");
+  };
   Viewer.prototype.fail = function (error) {
     this.root.setAttribute("data-status", "error");
     this.status.textContent = "3D view: " + (error && error.message || error);
@@ -445,6 +455,8 @@ VIEWER_SCRIPT = """<script>/* bench report: 3D view of the LODs */
   };
   Viewer.prototype.restyle = function () {
     var flat = this.shading.value === "flat", texture = this.texture.checked, wire = this.wire.checked;
+    this.root.setAttribute("data-shading", this.shading.value);
+    this.root.setAttribute("data-wireframe", String(wire));
     this.shown.forEach(function (m) {
       if (m) m.parts.forEach(function (o) {
         o.material.flatShading = flat;
@@ -486,16 +498,28 @@ VIEWER_SCRIPT = """<script>/* bench report: 3D view of the LODs */
   };
   var viewers = Array.prototype.map.call(document.querySelectorAll("div.viewer3d"),
                                          function (root) { return new Viewer(root); });
-  var wanted = /view3d(?:=([^&]*))?/.exec(location.hash), lod = /lod=(\\d+)/.exec(location.hash);
-  if (wanted && viewers.length) {
+  function decode(text) {  /* a malformed % escape leaves the text as it is */
+    try { return decodeURIComponent(text); } catch (e) { return text; }
+  }
+  function address() {  /* the fragment's key=value pairs, split on "&" (a bare key: ""); the first of a key counts */
+    var found = Object.create(null);
+    location.hash.replace(/^#/, "").split("&").forEach(function (part) {
+      var at = part.indexOf("="), key = decode(at < 0 ? part : part.slice(0, at));
+      if (key && !(key in found)) found[key] = at < 0 ? "" : decode(part.slice(at + 1));
+    });
+    return found;
+  }
+  var wanted = address();
+  if ("view3d" in wanted && viewers.length) {
     var chosen = viewers.filter(function (v) {
-      return v.root.getAttribute("data-model") === decodeURIComponent(wanted[1] || "");
+      return v.root.getAttribute("data-model") === wanted.view3d;
     })[0] || viewers[0];
-    var pick = lod ? chosen.lod.options[Number(lod[1])] : null;
-    if (pick && !pick.disabled) chosen.lod.selectedIndex = Number(lod[1]);
-    var shading = /shading=(flat|smooth)/.exec(location.hash);
-    if (shading) chosen.shading.value = shading[1];
-    if (/wireframe/.test(location.hash)) chosen.wire.checked = true;
+    var n = /^\\d+$/.test(wanted.lod || "") ? Number(wanted.lod) : -1;
+    var pick = n >= 0 ? chosen.lod.options[n] : null;
+    if (pick && !pick.disabled) chosen.lod.selectedIndex = n;
+    chosen.syncShading();
+    if (wanted.shading === "flat" || wanted.shading === "smooth") chosen.shading.value = wanted.shading;
+    if ("wireframe" in wanted) chosen.wire.checked = true;
     chosen.root.scrollIntoView();
     chosen.open();
   }
