@@ -319,6 +319,18 @@ def test_the_3d_view_starts_in_the_chosen_jobs_shading(run, tmp_path):
         assert view["data-faces"] == lods[lod]["data-faces"], fragment
         assert (view["data-shading"], view["data-wireframe"]) == (shading, wire), fragment
         assert not [a for a in dom.all("pre") if a.get("id") == "script-errors"], fragment
+    # a reader who picks the Gouraud job in the selector, then opens the view: a copy of
+    # the page whose last script does that
+    clicks = ("<script>var s = document.querySelector('.v3d-lod');"
+              f"s.selectedIndex = {smooth}; s.dispatchEvent(new Event('change'));"
+              "document.querySelector('.v3d-open').click();</script></body>")
+    chosen = folder / "chosen.html"
+    chosen.write_text(page.read_text().replace("</body>", clicks))
+    text = _chromium(tmp_path / "profile", "--virtual-time-budget=30000", "--dump-dom",
+                     chosen.as_uri(), webgl=True).stdout
+    view = _viewer(_Dom(text))
+    assert view["data-status"] == "ready", text[text.index("v3d-status"):][:400]
+    assert (view["data-faces"], view["data-shading"]) == (lods[smooth]["data-faces"], "smooth")
 
 
 @pytest.mark.parametrize("broken", ["no three.js", "no WebGL"])
