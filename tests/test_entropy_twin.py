@@ -83,7 +83,6 @@ def test_incremental_entropy_equals_a_fresh_render(background):
     s = result.stats
     assert s["collapses"] == 150
     assert s["face_id_mismatched_pixels"] == 0 and s["depth_mismatched_pixels"] == 0
-    assert s["scan_cache_mismatches"] == 0  # the kept scan set-up of every live face
     assert s["entropy_count_mismatches"] == 0  # the per-face pixel counts, exactly
     assert s["entropy_max_error"] < 1e-9
     assert "image_mismatched_pixels" not in s  # luminance is not kept in entropy mode

@@ -64,21 +64,6 @@ def test_incremental_images_with_texture_and_interior_views(small_torus):
     assert result.mesh.uv is not None
 
 
-@pytest.mark.parametrize("interior", [0, 10])
-def test_scan_setup_cache_equals_a_fresh_setup(interior):
-    """The per-view scan set-up kept for every live face (``ImageState.scan``, set by
-    the full render and updated by each commit for the faces it changes) equals the
-    set-up of a from-scratch render of the final mesh, value for value, with and without
-    culled views; the hole filling reads it instead of setting rows up."""
-    mesh = blob()
-    result = _run(mesh, _term(mesh, cull=interior_mask(20, interior)), collapses=120)
-    s = result.stats
-    assert s["collapses"] == 120
-    assert s["scan_cache_mismatches"] == 0
-    assert s["image_mismatched_pixels"] == 0 and s["face_id_mismatched_pixels"] == 0
-    assert s["cached_rows"] > 0
-
-
 @pytest.mark.parametrize("shading", ["flat", "gouraud"])
 def test_cost_is_the_brute_force_change_of_the_squared_error(shading):
     """f(e, k) = SSE(Y0, Y^{k+1}) - SSE(Y0, Y^k) over whole images (equation 8 before

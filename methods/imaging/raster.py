@@ -137,73 +137,34 @@ T_UV = 36  # corner texture coordinates, 3 x 2
 ROW = 42
 
 
-#: A row's scan set-up (:func:`scan_setup`), the values :func:`scan_pixels` reads:
-#: corners x, y (pixels) and z (NDC) with the winding made positive, 1 / area, and the
-#: unclamped pixel bounds ceil(min x - 0.5), floor(max x - 0.5), ceil(min y - 0.5),
-#: floor(max y - 0.5). A face that draws nothing (a corner at or behind the eye plane,
-#: zero or NaN area, or culled) has bounds (inf, -inf, inf, -inf) and zeros elsewhere.
-SC_X, SC_Y, SC_Z, SC_INV, SC_BOX = 0, 3, 6, 9, 10
-SCAN = 14
-
-NO_SCAN = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, np.inf, -np.inf, np.inf,
-            -np.inf)
-
-
 @njit(cache=True)
-def scan_setup(t, k, cull_front):
-    """The scan set-up of row ``k`` of table ``t`` (the :data:`SCAN` values, as a
-    tuple in that order), from its screen columns."""
-    if t[k, T_W] <= 0.0 or t[k, T_W + 1] <= 0.0 or t[k, T_W + 2] <= 0.0:
-        return NO_SCAN
-    x0, y0, z0 = t[k, T_X], t[k, T_Y], t[k, T_Z]
-    x1, y1, z1 = t[k, T_X + 1], t[k, T_Y + 1], t[k, T_Z + 1]
-    x2, y2, z2 = t[k, T_X + 2], t[k, T_Y + 2], t[k, T_Z + 2]
-    area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-    if not area != 0.0:  # zero or NaN
-        return NO_SCAN
-    if area < 0.0:  # y-down clockwise: the GL front face
-        if cull_front:
-            return NO_SCAN
-        x1, y1, z1, x2, y2, z2 = x2, y2, z2, x1, y1, z1  # make the winding positive
-        area = -area
-    return (x0, y0, z0, x1, y1, z1, x2, y2, z2, 1.0 / area, np.ceil(min(x0, x1, x2) - 0.5),
-            np.floor(max(x0, x1, x2) - 0.5), np.ceil(min(y0, y1, y2) - 0.5),
-            np.floor(max(y0, y1, y2) - 0.5))
-
-
-@njit(cache=True)
-def store_scan(C, h, f, s):
-    """Write scan set-up ``s`` (:func:`scan_setup`) to ``C[h, f]`` ((V, m, SCAN))."""
-    for i in range(SCAN):
-        C[h, f, i] = s[i]
-
-
-@njit(cache=True)
-def load_scan(C, h, f):
-    """The scan set-up stored at ``C[h, f]`` ((V, m, SCAN)), as :func:`scan_setup`'s
-    tuple."""
-    return (C[h, f, 0], C[h, f, 1], C[h, f, 2], C[h, f, 3], C[h, f, 4], C[h, f, 5],
-            C[h, f, 6], C[h, f, 7], C[h, f, 8], C[h, f, 9], C[h, f, 10], C[h, f, 11],
-            C[h, f, 12], C[h, f, 13])
-
-
-@njit(cache=True)
-def scan_pixels(s, fid, c_lo, c_hi, r_lo, r_hi, depth, ids):
-    """Z-buffer a face with id ``fid`` and scan set-up ``s`` (:func:`scan_setup`) into
-    the region [r_lo, r_hi] x [c_lo, c_hi].
+def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
+    """Z-buffer row ``k`` of table ``t``, a face with id ``fid``, into the region
+    [r_lo, r_hi] x [c_lo, c_hi].
 
     ``depth`` and ``ids`` are indexed from (r_lo, c_lo). A pixel goes to the face with
     the smaller (depth, id): equal depths go to the lower id, which is what drawing
     faces in increasing id with a ``<`` depth test gives (``GL_LESS``), whatever order
     the faces are scanned in. Returns the number of pixel centres tested.
     """
-    x0, y0, z0, x1, y1, z1, x2, y2, z2 = s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8]
-    inv_area = s[SC_INV]
+    if t[k, T_W] <= 0.0 or t[k, T_W + 1] <= 0.0 or t[k, T_W + 2] <= 0.0:
+        return 0
+    x0, y0, z0 = t[k, T_X], t[k, T_Y], t[k, T_Z]
+    x1, y1, z1 = t[k, T_X + 1], t[k, T_Y + 1], t[k, T_Z + 1]
+    x2, y2, z2 = t[k, T_X + 2], t[k, T_Y + 2], t[k, T_Z + 2]
+    area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    if not area != 0.0:  # zero or NaN
+        return 0
+    if area < 0.0:  # y-down clockwise: the GL front face
+        if cull_front:
+            return 0
+        x1, y1, z1, x2, y2, z2 = x2, y2, z2, x1, y1, z1  # make the winding positive
+        area = -area
     # clamped as floats first, so that far-away vertices cannot overflow the integers
-    cmin = int(min(max(s[SC_BOX], float(c_lo)), c_hi + 1.0))
-    cmax = int(max(min(s[SC_BOX + 1], float(c_hi)), c_lo - 1.0))
-    rmin = int(min(max(s[SC_BOX + 2], float(r_lo)), r_hi + 1.0))
-    rmax = int(max(min(s[SC_BOX + 3], float(r_hi)), r_lo - 1.0))
+    cmin = int(min(max(np.ceil(min(x0, x1, x2) - 0.5), float(c_lo)), c_hi + 1.0))
+    cmax = int(max(min(np.floor(max(x0, x1, x2) - 0.5), float(c_hi)), c_lo - 1.0))
+    rmin = int(min(max(np.ceil(min(y0, y1, y2) - 0.5), float(r_lo)), r_hi + 1.0))
+    rmax = int(max(min(np.floor(max(y0, y1, y2) - 0.5), float(r_hi)), r_lo - 1.0))
     if cmin > cmax or rmin > rmax:
         return 0
     # Edge i is opposite vertex i; top-left: dy < 0, or dy == 0 and dx > 0.
@@ -213,6 +174,7 @@ def scan_pixels(s, fid, c_lo, c_hi, r_lo, r_hi, depth, ids):
     tl0 = dy0 < 0.0 or (dy0 == 0.0 and dx0 > 0.0)
     tl1 = dy1 < 0.0 or (dy1 == 0.0 and dx1 > 0.0)
     tl2 = dy2 < 0.0 or (dy2 == 0.0 and dx2 > 0.0)
+    inv_area = 1.0 / area
     for r in range(rmin, rmax + 1):
         py = r + 0.5
         for c in range(cmin, cmax + 1):
@@ -234,14 +196,6 @@ def scan_pixels(s, fid, c_lo, c_hi, r_lo, r_hi, depth, ids):
                 depth[r - r_lo, c - c_lo] = z
                 ids[r - r_lo, c - c_lo] = fid
     return (rmax - rmin + 1) * (cmax - cmin + 1)
-
-
-@njit(cache=True)
-def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
-    """Z-buffer row ``k`` of table ``t``, a face with id ``fid``, into the region
-    [r_lo, r_hi] x [c_lo, c_hi]: :func:`scan_pixels` of :func:`scan_setup`. Returns the
-    number of pixel centres tested."""
-    return scan_pixels(scan_setup(t, k, cull_front), fid, c_lo, c_hi, r_lo, r_hi, depth, ids)
 
 
 @njit(cache=True)

@@ -8,7 +8,6 @@ import numpy as np
 from numba import njit
 
 from methods.imaging.counters import (
-    STAT_CACHED_ROWS,
     STAT_COMMITS,
     STAT_FACE_ROWS,
     STAT_GATHER_CYCLES,
@@ -20,14 +19,7 @@ from methods.imaging.counters import (
     cycles,
 )
 from methods.imaging.entropy import _entropy_change
-from methods.imaging.raster import (
-    load_scan,
-    scan_pixels,
-    scan_row,
-    scan_setup,
-    shade_pixel,
-    store_scan,
-)
+from methods.imaging.raster import scan_row, shade_pixel
 from methods.imaging.rows import (
     _light,
     _pos,
@@ -118,7 +110,7 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     # The changed faces, over the whole rectangle.
     n = _scan_changed(h, rect, na, u, v, sp, F, img, iws)
     if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
-        _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, falive, img, tiles, iws)
+        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, sp, F, falive, img, tiles, iws)
     mid = cycles()
     if ent.on:  # viewpoint entropy: the count changes inside the rectangle
         dh = _entropy_change(h, rect, iws.ids, img.IDS, ent, commit)
@@ -184,12 +176,10 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws):
 
 
 @njit(cache=True)
-def _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, falive, img, tiles, iws):
+def _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, sp, F, falive, img, tiles, iws):
     """Scan every other face whose box meets the holes' box (from the tile index) over
-    that box, from its cached scan set-up (``img.scan``: these faces are unchanged).
-    They get no table row (:func:`_shade_changes` makes one for a face it shades), so
-    ``iws.cand[n:]`` is free again afterwards."""
-    mark, tick, cand, aff = iws.mark, iws.tick, iws.cand, iws.aff
+    that box, as table rows n..; returns the new row count."""
+    mark, tick, cand, rowof, t, aff = iws.mark, iws.tick, iws.cand, iws.rowof, iws.t, iws.aff
     width = img.Y.shape[2]
     r0, c0 = rect[2], rect[0]
     tick[0] += 1
@@ -205,8 +195,10 @@ def _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, falive, img, tiles, iws):
     hole_ids = iws.ids[hr0 - r0:, hc0 - c0:]
     for k in range(n, n2):
         f = cand[k]
-        scan_pixels(load_scan(img.scan, h, f), f, hc0, hc1, hr0, hr1, hole_depth, hole_ids)
-    img.stats[STAT_CACHED_ROWS] += n2 - n
+        rowof[f] = k
+        fill_screen(t, k, f, h, -1, -1, sp, img.S, F)
+        scan_row(t, k, f, hc0, hc1, hr0, hr1, img.cull[h], hole_depth, hole_ids)
+    return n2
 
 
 @njit(cache=True)
@@ -348,8 +340,8 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
 def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, valive, img,
                     tiles, iws):
     """After collapsing into ``v`` (faces ``removed[:n_removed]`` deleted): update screen
-    positions, normals, lighting and face boxes, note each view's rectangle, list
-    the changed faces in the tile index and set their scan set-up (``img.scan``). Returns (whether no tile overflowed, how many
+    positions, normals, lighting and face boxes, note each view's rectangle, and list
+    the changed faces in the tile index. Returns (whether no tile overflowed, how many
     faces around ``v`` changed); after an overflow rebuild the index before
     :func:`commit_render`."""
     M, eyes, S, fbox, vn, L, shading = (img.M, img.eyes, img.S, img.fbox, img.vn, img.L,
@@ -396,7 +388,6 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
         for i in range(na):
             f = aff[i]
             fill_screen(t, 0, f, h, -1, -1, sp, S, F)
-            store_scan(img.scan, h, f, scan_setup(t, 0, img.cull[h]))
             row_box(t, 0, width, height, fbox[h, f])
             _grow(rects[h], fbox[h, f])
             if ok:

@@ -11,17 +11,7 @@ from numba import njit, prange
 
 from methods.imaging.counters import STAT_NAMES
 from methods.imaging.entropy import entropy_init, view_entropy
-from methods.imaging.raster import (
-    NO_SCAN,
-    ROW,
-    SCAN,
-    Shading,
-    scan_pixels,
-    scan_setup,
-    shade_region,
-    shading_constants,
-    store_scan,
-)
+from methods.imaging.raster import ROW, Shading, scan_row, shade_region, shading_constants
 from methods.imaging.region import _MAX_RING, AFFECTED_CAP, NEW_UV_CAP
 from methods.imaging.rows import (
     NORMAL_FACES_CAP,
@@ -43,16 +33,9 @@ from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, SHADINGS
 #: (:data:`methods.imaging.raster.Shading`), ``texture`` (h, w, 3) uint8, ``stats``
 #: counters (indexed by methods.imaging.counters.STAT_*), the face seen at each pixel
 #: ``IDS`` (V, H, W) int64 (-1 empty), its depth ``DZ`` (V, H, W), ``ent``
-#: (:data:`Entropy`), and ``scan`` (V, m, SCAN) the per-view scan set-up of every live
-#: face (:func:`methods.imaging.raster.scan_setup` of its current screen corners; kept
-#: up to date by :func:`methods.imaging.region.commit_geometry`, so that re-rendering a
-#: rectangle sets up only the faces a collapse changes).
+#: (:data:`Entropy`).
 ImageState = namedtuple("ImageState", "M eyes cull Y0 Y S fbox vn L shading texture stats "
-                                      "IDS DZ ent scan")
-
-#: Bytes the per-view scan set-up cache (``ImageState.scan``: views x faces x SCAN
-#: float64) may take; a larger image state raises rather than swapping.
-SCAN_CACHE_BYTES_CAP = 1 << 30
+                                      "IDS DZ ent")
 
 #: The viewpoint entropy's counts: face pixel ``counts`` (V, m + 1) (entry 0 the
 #: background), per view ``sums`` of a log a (V,) and ``totals`` (V,), scratch
@@ -108,8 +91,7 @@ def dummy_state():
                      np.zeros((1, 1, 4), np.int32), np.zeros((1, 3)), np.zeros((1, 1, 4)),
                      Shading(0.0, 0.0, 0.0, 0.0, 0.0, False, False, False),
                      np.zeros((1, 1, 3), np.uint8), np.zeros(len(STAT_NAMES), np.int64),
-                     np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1)), entropy_state(1, 1),
-                     np.zeros((1, 1, SCAN)))
+                     np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1)), entropy_state(1, 1))
     tiles = Tiles(np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64),
                   np.zeros(1, np.int32), np.zeros((1, 1, 4), np.int32))
     return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
@@ -138,10 +120,6 @@ def new_state(M, eyes, cull, Y0, shading, texture, nv, m, n_wedges, entropy=None
         counts (:func:`entropy_init` fills them after :func:`full_render`).
     """
     n_views, height, width = Y0.shape
-    if n_views * m * SCAN * 8 > SCAN_CACHE_BYTES_CAP:
-        raise ValueError(f"the scan set-up cache of {n_views} views x {m} faces takes "
-                         f"{n_views * m * SCAN * 8} bytes, more than SCAN_CACHE_BYTES_CAP "
-                         f"({SCAN_CACHE_BYTES_CAP}, methods.imaging.state)")
     img = ImageState(
         np.ascontiguousarray(M, np.float64), np.ascontiguousarray(eyes, np.float64),
         np.ascontiguousarray(cull, np.bool_), np.ascontiguousarray(Y0, np.float64),
@@ -151,25 +129,24 @@ def new_state(M, eyes, cull, Y0, shading, texture, nv, m, n_wedges, entropy=None
         np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64),
         np.full(Y0.shape, np.inf),
         entropy_state(n_views, m) if entropy is None else
-        entropy_state(n_views, m, True, entropy[0], entropy[1]),
-        np.empty((n_views, max(m, 1), SCAN)))
+        entropy_state(n_views, m, True, entropy[0], entropy[1]))
     return img, _workspace(n_views, nv, m, n_wedges, height, width)
 
 
 def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background):
     """Set every per-vertex and per-face quantity of the image state ``img`` from the
     mesh and render all views from scratch into ``Y``, ``IDS`` (the face seen at each
-    pixel, -1 empty) and ``DZ`` (its depth), and the scan set-up cache ``scan``."""
+    pixel, -1 empty) and ``DZ`` (its depth)."""
     # The parallel kernel takes the fields one by one: numba's parfor lowering cannot
     # trace a namedtuple taken from another one's field into a prange body.
     _full_render(img.M, img.eyes, img.cull, img.Y, img.S, img.fbox, img.vn, img.L,
-                 img.shading, img.texture, img.IDS, img.DZ, img.scan, iws.vslot,
-                 iws.ov_light, iws.wslot, iws.new_uv, P, F, FW, uv, falive, vhead, cnext,
-                 valive, background)
+                 img.shading, img.texture, img.IDS, img.DZ, iws.vslot, iws.ov_light,
+                 iws.wslot, iws.new_uv, P, F, FW, uv, falive, vhead, cnext, valive,
+                 background)
 
 
 @njit(cache=True, parallel=True)
-def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, scan, vslot,
+def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vslot,
                  ov_light, wslot, new_uv, P, F, FW, uv, falive, vhead, cnext, valive,
                  background):
     """:func:`full_render` on the image state's fields (:data:`ImageState`,
@@ -192,8 +169,6 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, sc
                 _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], shading, L[h, i], 0)
     live = np.flatnonzero(falive)
     for h in prange(n_views):
-        for f in range(m):  # dead faces: no set-up (never read)
-            store_scan(scan, h, f, NO_SCAN)
         t = np.empty((max(live.shape[0], 1), ROW))
         depth = np.full((height, width), np.inf)
         local = np.full((height, width), -1, np.int32)
@@ -203,9 +178,7 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, sc
             fill_shading(t, k, live[k], h, -1, -1, P[0], P, F, FW, uv, L, vslot, ov_light,
                          wslot, new_uv, none_i, none_i, 0, shading)
             row_box(t, k, width, height, fbox[h, live[k]])
-            s = scan_setup(t, k, cull[h])
-            store_scan(scan, h, live[k], s)
-            scan_pixels(s, k, 0, width - 1, 0, height - 1, depth, local)
+            scan_row(t, k, k, 0, width - 1, 0, height - 1, cull[h], depth, local)
         shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], shading, texture,
                      background, Y[h])
         for r in range(height):
@@ -306,7 +279,7 @@ class ImageTerm:
 
         counts = dict(zip(STAT_NAMES, (int(x) for x in img.stats)))
         out = {k: counts[k] for k in ("image_evaluations", "pixels_shaded", "face_rows",
-                                      "cached_rows", "tile_rebuilds")}
+                                      "tile_rebuilds")}
         if counts["run_cycles"] > 0:  # where the time goes
             for k in ("gather", "shade", "setup"):
                 out[f"{k}_share"] = counts[f"{k}_cycles"] / counts["run_cycles"]
@@ -328,10 +301,6 @@ class ImageTerm:
                 out["image_mismatched_pixels"] = int(np.count_nonzero(again.Y != Y))
             out["face_id_mismatched_pixels"] = int(np.count_nonzero(again.IDS != img.IDS))
             out["depth_mismatched_pixels"] = int(np.count_nonzero(again.DZ != img.DZ))
-            # the scan set-up cache of every live face against a fresh set-up
-            live = np.asarray(falive, bool)
-            out["scan_cache_mismatches"] = int(np.count_nonzero(
-                again.scan[:, live] != img.scan[:, live]))
             if entropy:  # the maintained counts and entropies against fresh ones
                 entropy_init(again.IDS, again.ent)
                 fresh = np.array([view_entropy(s, float(a))
