@@ -1,12 +1,17 @@
 """Method time of one job in two checkouts, alternating fresh processes:
 
     .venv/bin/python scripts/compare_speed.py DIR_A DIR_B ROUNDS [FACES] [METHOD]
+                                              [--model NAME]
 
 Each round runs, in a fresh process per checkout (its code first on the import path,
 numba's caches warm from a first run), METHOD (default image-driven) once on a
-200-face icosphere as a warm-up and then on the bunny to FACES faces (default 1,332),
-and prints the method's ``wall_seconds``; at the end the medians and B/A. A and B take
-turns, so drift of a shared machine hits both alike. Run nothing else meanwhile.
+200-face icosphere as a warm-up and then on the model (``--model``, any name or path
+``bench run`` takes; default the bunny) to FACES faces (default 1,332), and prints the
+method's ``wall_seconds``; at the end the medians and B/A. A and B take turns, so drift
+of a shared machine hits both alike. Run nothing else meanwhile. González et al.
+2008's Table 1 rows, for instance::
+
+    scripts/compare_speed.py A B 3 100 entropy-twin --model bunny-textured-815
 """
 
 import statistics
@@ -25,19 +30,25 @@ sys.path.insert(0, sys.argv[1])
 sys.path.insert(1, sys.argv[2])
 import bench
 from bench.method import run_method
-from bench.models import BUNNY
+from bench.models import resolve_model
 from conftest import icosphere
 from {module} import {cls}
 run_method({cls}(), icosphere(3), 200)
-print(run_method({cls}(), BUNNY.load(), {faces}).stats["wall_seconds"])
+print(run_method({cls}(), resolve_model({model!r}), {faces}).stats["wall_seconds"])
 """
 
 
 def main() -> None:
-    a, b, rounds = sys.argv[1], sys.argv[2], int(sys.argv[3])
-    faces = int(sys.argv[4]) if len(sys.argv) > 4 else 1332
-    module, cls = CLASSES[sys.argv[5] if len(sys.argv) > 5 else "image-driven"]
-    code = CODE.format(module=module, cls=cls, faces=faces)
+    args = sys.argv[1:]
+    model = "bunny"
+    if "--model" in args:
+        i = args.index("--model")
+        model = args[i + 1]
+        del args[i:i + 2]
+    a, b, rounds = args[0], args[1], int(args[2])
+    faces = int(args[3]) if len(args) > 3 else 1332
+    module, cls = CLASSES[args[4] if len(args) > 4 else "image-driven"]
+    code = CODE.format(module=module, cls=cls, faces=faces, model=model)
     tests = str(Path(__file__).resolve().parent.parent / "tests")
     times = {a: [], b: []}
     for _ in range(rounds):
