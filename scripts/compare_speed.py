@@ -7,9 +7,10 @@ Each round runs, in a fresh process per checkout (its code first on the import p
 numba's caches warm from a first run), METHOD (default image-driven) once on a
 200-face icosphere as a warm-up and then on the model (``--model``, any name or path
 ``bench run`` takes; default the bunny) to FACES faces (default 1,332), and prints the
-method's ``wall_seconds``; at the end the medians and B/A. A and B take turns, so drift
-of a shared machine hits both alike. Run nothing else meanwhile. González et al.
-2008's Table 1 rows, for instance::
+method's ``wall_seconds`` and ``cpu_seconds`` (all threads; on a shared machine the
+processor time varies far less than the wall time); at the end the medians and B/A of
+both. A and B take turns, so drift of a shared machine hits both alike. Run nothing else
+meanwhile. González et al. 2008's Table 1 rows, for instance::
 
     scripts/compare_speed.py A B 3 100 entropy-twin --model bunny-textured-815
 """
@@ -34,7 +35,8 @@ from bench.models import resolve_model
 from conftest import icosphere
 from {module} import {cls}
 run_method({cls}(), icosphere(3), 200)
-print(run_method({cls}(), resolve_model({model!r}), {faces}).stats["wall_seconds"])
+stats = run_method({cls}(), resolve_model({model!r}), {faces}).stats
+print(stats["wall_seconds"], stats["cpu_seconds"])
 """
 
 
@@ -50,7 +52,7 @@ def main() -> None:
     module, cls = CLASSES[args[4] if len(args) > 4 else "image-driven"]
     code = CODE.format(module=module, cls=cls, faces=faces, model=model)
     tests = str(Path(__file__).resolve().parent.parent / "tests")
-    times = {a: [], b: []}
+    times, cpus = {a: [], b: []}, {a: [], b: []}
     for _ in range(rounds):
         for tree in (a, b):
             out = subprocess.run([sys.executable, "-c", code, tree, tests], cwd=tree,
@@ -59,10 +61,14 @@ def main() -> None:
                                       "HOME": str(Path.home())})
             if out.returncode:
                 sys.exit(out.stderr[-2000:])
-            times[tree].append(float(out.stdout.split()[-1]))
-            print(f"{tree}: {times[tree][-1]:.3f} s", flush=True)
+            wall, cpu = out.stdout.split()[-2:]
+            times[tree].append(float(wall))
+            cpus[tree].append(float(cpu))
+            print(f"{tree}: {times[tree][-1]:.3f} s (cpu {cpus[tree][-1]:.3f} s)", flush=True)
     ma, mb = statistics.median(times[a]), statistics.median(times[b])
     print(f"median A {ma:.3f} s, B {mb:.3f} s, B/A {mb / ma:.3f}")
+    ca, cb = statistics.median(cpus[a]), statistics.median(cpus[b])
+    print(f"cpu median A {ca:.3f} s, B {cb:.3f} s, B/A {cb / ca:.3f}")
 
 
 if __name__ == "__main__":
