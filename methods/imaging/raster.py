@@ -174,20 +174,33 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
     tl0 = dy0 < 0.0 or (dy0 == 0.0 and dx0 > 0.0)
     tl1 = dy1 < 0.0 or (dy1 == 0.0 and dx1 > 0.0)
     tl2 = dy2 < 0.0 or (dy2 == 0.0 and dx2 > 0.0)
+    # Along a row each edge function is monotone in the column (every operation of it is
+    # a correctly rounded monotone function of px), so the centres inside all three
+    # edges form one run: the row ends where it is left. Not for values so large that
+    # the products could overflow (inf - inf is NaN, which is not monotone).
     inv_area = 1.0 / area
+    bounded = max(abs(x0), abs(x1), abs(x2), abs(y0), abs(y1), abs(y2)) < 1e150
     for r in range(rmin, rmax + 1):
         py = r + 0.5
+        entered = False
         for c in range(cmin, cmax + 1):
             px = c + 0.5
             e0 = dx0 * (py - y1) - dy0 * (px - x1)
             if e0 < 0.0 or (e0 == 0.0 and not tl0):
+                if entered and bounded:
+                    break
                 continue
             e1 = dx1 * (py - y2) - dy1 * (px - x2)
             if e1 < 0.0 or (e1 == 0.0 and not tl1):
+                if entered and bounded:
+                    break
                 continue
             e2 = dx2 * (py - y0) - dy2 * (px - x0)
             if e2 < 0.0 or (e2 == 0.0 and not tl2):
+                if entered and bounded:
+                    break
                 continue
+            entered = True
             z = (e0 * z0 + e1 * z1 + e2 * z2) * inv_area
             if z < -1.0 or z > 1.0:
                 continue
