@@ -85,6 +85,69 @@ def test_face_ids_match_reference(make):
         assert set(np.unique(ids[0])) == {-1, 0, 1}
 
 
+def _every_centre(x, y, z, c_lo, c_hi, r_lo, r_hi, depth, ids, fid):
+    """:func:`methods.imaging.raster.scan_row`'s pixel test at every centre of the face's
+    box, in the same floating-point operations, with no early end of a row."""
+    x0, x1, x2 = x
+    y0, y1, y2 = y
+    z0, z1, z2 = z
+    area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    if area == 0.0:
+        return
+    if area < 0.0:
+        x1, y1, z1, x2, y2, z2 = x2, y2, z2, x1, y1, z1
+        area = -area
+    cmin = int(min(max(np.ceil(min(x0, x1, x2) - 0.5), float(c_lo)), c_hi + 1.0))
+    cmax = int(max(min(np.floor(max(x0, x1, x2) - 0.5), float(c_hi)), c_lo - 1.0))
+    rmin = int(min(max(np.ceil(min(y0, y1, y2) - 0.5), float(r_lo)), r_hi + 1.0))
+    rmax = int(max(min(np.floor(max(y0, y1, y2) - 0.5), float(r_hi)), r_lo - 1.0))
+    edges = ((x2 - x1, y2 - y1, x1, y1), (x0 - x2, y0 - y2, x2, y2), (x1 - x0, y1 - y0, x0, y0))
+    inv_area = 1.0 / area
+    for r in range(rmin, rmax + 1):
+        for c in range(cmin, cmax + 1):
+            e = [dx * ((r + 0.5) - ey) - dy * ((c + 0.5) - ex) for dx, dy, ex, ey in edges]
+            if any(ei < 0.0 or (ei == 0.0 and not (dy < 0.0 or (dy == 0.0 and dx > 0.0)))
+                   for ei, (dx, dy, _, _) in zip(e, edges)):
+                continue
+            zz = (e[0] * z0 + e[1] * z1 + e[2] * z2) * inv_area
+            if -1.0 <= zz <= 1.0 and (zz < depth[r - r_lo, c - c_lo] or (
+                    zz == depth[r - r_lo, c - c_lo] and fid < ids[r - r_lo, c - c_lo])):
+                depth[r - r_lo, c - c_lo], ids[r - r_lo, c - c_lo] = zz, fid
+
+
+def test_a_row_ends_where_it_leaves_the_triangle_exactly():
+    """scan_row stops a pixel row at the first centre outside the triangle after the
+    inside run; a test of every centre of the box gives the same depths and ids, bit for
+    bit, for slivers, centres on edges and vertices, and both windings."""
+    from methods.imaging.raster import ROW, T_W, T_X, T_Y, T_Z, scan_row
+
+    rng = np.random.default_rng(7)
+    tris = [rng.uniform(-4, 36, (3, 2)) for _ in range(150)]
+    tris += [np.array([[2.5, 1.5], [30.5, 1.5 + k * 1e-9], [16.5, 2.0 + k]]) for k in range(20)]
+    tris += [np.floor(rng.uniform(0, 32, (3, 2))) + 0.5 for _ in range(100)]  # on centres
+    tris += [np.array([[0.0, 0.0], [31.0, 30.999999999], [15.0, 15.0 + 1e-12]])]  # sliver
+    t = np.zeros((1, ROW))
+    depth, ids = np.full((SIZE, SIZE), np.inf), np.full((SIZE, SIZE), -1, np.int64)
+    want_depth, want_ids = depth.copy(), ids.copy()  # all triangles in one z-buffer
+    covered = 0
+    for fid, xy in enumerate(tris):
+        z = rng.uniform(-0.9, 0.9, 3)
+        t[0, T_X:T_X + 3], t[0, T_Y:T_Y + 3], t[0, T_Z:T_Z + 3] = xy[:, 0], xy[:, 1], z
+        t[0, T_W:T_W + 3] = 1.0
+        scan_row(t, 0, fid, 0, SIZE - 1, 0, SIZE - 1, False, depth, ids)
+        _every_centre(xy[:, 0], xy[:, 1], z, 0, SIZE - 1, 0, SIZE - 1, want_depth,
+                      want_ids, fid)
+        alone, want = np.full((SIZE, SIZE), -1, np.int64), np.full((SIZE, SIZE), -1, np.int64)
+        scan_row(t, 0, fid, 0, SIZE - 1, 0, SIZE - 1, False, np.full((SIZE, SIZE), np.inf),
+                 alone)
+        _every_centre(xy[:, 0], xy[:, 1], z, 0, SIZE - 1, 0, SIZE - 1,
+                      np.full((SIZE, SIZE), np.inf), want, fid)
+        assert np.array_equal(alone, want), f"triangle {fid}"
+        covered += np.count_nonzero(want >= 0) > 0
+    assert np.array_equal(ids, want_ids) and np.array_equal(depth, want_depth)
+    assert covered > 200  # most triangles cover some centre
+
+
 def test_sphere_covers_inscribed_disc():
     mesh = icosphere(4, name="sphere")
     camera = protocol_cameras(mesh)[0]
