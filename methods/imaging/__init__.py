@@ -29,7 +29,10 @@ Rendering is :mod:`methods.imaging.raster`'s: each face to draw becomes a row of
 table and the same :func:`~methods.imaging.raster.scan_row` and
 :func:`~methods.imaging.raster.shade_pixel` do the pixels. A pixel goes to the face with the
 smaller (depth, face id), whatever order faces are scanned in, which is what a full
-render drawing faces in increasing index with ``GL_LESS`` gives. Faces keep their
+render drawing faces in increasing index with ``GL_LESS`` gives. Every face scanned gets
+its row set up afresh from the per-vertex screen positions: the time of a re-render is
+in its pixel tests, not in that set-up, and a per-view cache of the unchanged faces'
+set-up did not pay (``docs/maintainers.md`` has the profile and the figures). Faces keep their
 indices for the life of the engine (a collapse only deletes faces and renames
 corners), and every per-vertex quantity is computed by the same function in both
 cases (vertex normals summed over incident faces in increasing face index). The
