@@ -1,6 +1,6 @@
 """The view-based methods' speed targets as a benchmark, in one checkout:
 
-    .venv/bin/python scripts/speed_targets.py [--rounds 3] [--jobs NAME,...]
+    .venv/bin/python scripts/speed_targets.py [--rounds 3] [--jobs NAME,...] [--threads T]
 
 Each job runs in a fresh process: the model is loaded, the method is warmed up on the
 tiny meshes of :mod:`bench.harness.warmup` (numba's cache loading or compilation is not
@@ -8,12 +8,14 @@ method time, as in ``bench run``), then timed on the model (``wall_seconds``, th
 method's own time). The jobs take turns round after round, so drift of a shared machine
 hits them alike; the table gives each job's median, the triangles it removes per second
 and its median over qslim's median of the same rounds, against the targets below.
-Run nothing else meanwhile.
+``--threads`` sets the threads of the jobs' numba kernels (``NUMBA_NUM_THREADS``;
+default: every core). Run nothing else meanwhile.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -66,12 +68,15 @@ print(mesh.n_faces, result.mesh.n_faces, result.stats["wall_seconds"])
 """
 
 
-def time_job(target: Target) -> tuple[int, int, float]:
+def time_job(target: Target, threads: int | None = None) -> tuple[int, int, float]:
     """(input faces, output faces, method seconds) of one fresh process."""
+    env = dict(os.environ)
+    if threads is not None:
+        env["NUMBA_NUM_THREADS"] = str(threads)
     try:
         out = subprocess.run([sys.executable, "-c", CODE, target.method, target.model,
                               str(target.faces)], cwd=ROOT, capture_output=True, text=True,
-                             timeout=JOB_LIMIT, check=False)
+                             timeout=JOB_LIMIT, check=False, env=env)
     except subprocess.TimeoutExpired:
         sys.exit(f"{target.name}: no result within {JOB_LIMIT:g} s")
     if out.returncode:
@@ -84,11 +89,14 @@ def time_job(target: Target) -> tuple[int, int, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--threads", type=int, help="numba threads per job (default: all)")
     parser.add_argument("--jobs", default=",".join(t.name for t in TARGETS),
                         help="which of: " + ", ".join(t.name for t in TARGETS))
     args = parser.parse_args()
     if args.rounds < 1:
         sys.exit(f"--rounds must be at least 1, got {args.rounds}")
+    if args.threads is not None and args.threads < 1:
+        sys.exit(f"--threads must be at least 1, got {args.threads}")
     names = args.jobs.split(",")
     unknown = sorted(set(names) - {t.name for t in TARGETS})
     if unknown:
@@ -99,11 +107,12 @@ def main() -> None:
     sizes: dict[str, tuple[int, int]] = {}
     for r in range(args.rounds):
         for t in chosen:
-            n_in, n_out, seconds = time_job(t)
+            n_in, n_out, seconds = time_job(t, args.threads)
             sizes[t.name] = (n_in, n_out)
             times[t.name].append(seconds)
             print(f"round {r + 1} {t.name}: {seconds:.3f} s", flush=True)
     qslim = statistics.median(times["qslim"])
+    print(f"\nthreads per job: {args.threads or 'all'} (numba); {args.rounds} rounds")
     print("\n| job | faces | method s (runs) | median s | triangles/s | over qslim | target |")
     print("| --- | --- | --- | ---: | ---: | ---: | --- |")
     for t in chosen:
