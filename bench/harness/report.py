@@ -44,7 +44,13 @@ from bench.harness.report_table import SCRIPT, summary_html
 from bench.harness.report_table import cell as _cell
 from bench.harness.report_table import esc as _esc
 from bench.harness.report_viewer import VIEWER_SCRIPT, Viewers, single_file_note
-from bench.harness.results import load_records, records_table, shading_label, write_atomic
+from bench.harness.results import (
+    image_settings,
+    load_records,
+    records_table,
+    shading_label,
+    write_atomic,
+)
 
 __all__ = ["ERRORS_SCRIPT", "PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_page",
            "plot_text", "pyplot", "write_report"]
@@ -249,11 +255,12 @@ def _shadings(records: list[dict]) -> list[str]:
 def _evaluation_words(protocol: dict) -> str:
     """A record's evaluation label in words: ``gouraud + specular``, with the image
     settings that are not the default (``at 1024² on the representative view``)."""
+    resolution, views = image_settings(protocol)
     words = protocol["shading"] + (" + specular" if protocol.get("specular") else "")
-    if protocol.get("resolution", 512) != 512:
-        words += f" at {protocol['resolution']}²"
-    if protocol.get("views", "rhombicuboctahedron") != "rhombicuboctahedron":
-        words += f" on the {protocol['views']} view set"
+    if resolution is not None:
+        words += f" at {resolution}²"
+    if views is not None:
+        words += f" on the {views} view set"
     return words
 
 

@@ -65,12 +65,22 @@ def shading_label(protocol: dict) -> str:
     views adds ``-<name>`` (``gouraud-spec-1024-representative``), so results under
     different image settings are never matched (by ``bench check``, the claims, the
     report). The default protocol's labels are the ones records always had."""
+    resolution, views = image_settings(protocol)
     label = protocol["shading"] + ("-spec" if protocol.get("specular") else "")
-    if protocol.get("resolution", 512) != 512:
-        label += f"-{protocol['resolution']}"
-    if protocol.get("views", "rhombicuboctahedron") != "rhombicuboctahedron":
-        label += f"-{protocol['views']}"
+    if resolution is not None:
+        label += f"-{resolution}"
+    if views is not None:
+        label += f"-{views}"
     return label
+
+
+def image_settings(protocol: dict) -> tuple:
+    """A record's protocol's image settings that are not the default, as (resolution,
+    view set), each None at its default (512, the 24 rhombicuboctahedron views)."""
+    resolution = protocol.get("resolution", 512)
+    views = protocol.get("views", "rhombicuboctahedron")
+    return (resolution if resolution != 512 else None,
+            views if views != "rhombicuboctahedron" else None)
 
 
 def write_record(path: Path, record: dict, sort_keys: bool = True) -> Path:

@@ -165,6 +165,11 @@ BUNNY_FACES = 56172
 #: edges kept) down to the 2 % and 1 % of the ci suite and below.
 G2007_RATIOS = (0.5, 0.25, 0.1, 0.05, 0.02, 0.01, 0.005)
 
+#: Williams et al. 2003 §6: the models and perceptual-mt's four error metrics compared.
+W2003_MODELS = ("torus-puzzle", "bunny")
+W2003_VARIANTS = tuple(("perceptual-mt", {"error": e})
+                       for e in ("perceptual", "object", "screen", "screen-silhouette"))
+
 SUITES = {
     "ci": Suite(
         "ci", "small enough for CI: bunny and torus at 2% and 1% of their faces, every "
@@ -282,10 +287,7 @@ SUITES = {
         "w2003", "Williams et al. 2003 §6: perceptual-mt's four error metrics (perceptual, "
         "object, screen, screen-silhouette) on torus-puzzle and the bunny at 90% and 98% "
         "simplification, Gouraud shading with specular highlights",
-        models=("torus-puzzle", "bunny"),
-        variants=tuple(("perceptual-mt", {"error": e})
-                       for e in ("perceptual", "object", "screen", "screen-silhouette")),
-        ratios=(0.10, 0.02),
+        models=W2003_MODELS, variants=W2003_VARIANTS, ratios=(0.10, 0.02),
         protocols=(("gouraud", True),),
         claims=(
             Claim("w2003-98", "Williams et al. 2003, Plate 2 and Fig. 4",
@@ -305,10 +307,7 @@ SUITES = {
         "w2003-paper", "Williams et al. 2003 §6 in the paper's own setting: the w2003 "
         "variants evaluated on one representative view at 1,024², gray background, "
         "Gouraud shading with specular highlights",
-        models=("torus-puzzle", "bunny"),
-        variants=tuple(("perceptual-mt", {"error": e})
-                       for e in ("perceptual", "object", "screen", "screen-silhouette")),
-        ratios=(0.10, 0.02),
+        models=W2003_MODELS, variants=W2003_VARIANTS, ratios=(0.10, 0.02),
         protocols=(("gouraud", True, W2003_PAPER_SETTING),),
         claims=(
             Claim("w2003-98-paper", "Williams et al. 2003, Plate 2 and Fig. 4",
