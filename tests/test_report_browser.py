@@ -208,6 +208,11 @@ def test_a_comparison_grid_puts_the_methods_side_by_side(tmp_path):
     dom = _Dom(text)
     grids = [t for t in dom.all("table") if t.get("class") == "grid"]
     assert len(grids) == 1
+    # the model's curves (d_RMS, FLIP, Hausdorff) and a link from them to the grid
+    plots = [i["alt"] for i in dom.all("img") if i.get("alt", "").endswith(" plot")]
+    assert plots == ["d_rms plot", "flip plot", "hausdorff_mean plot"]
+    assert [a["href"] for a in dom.all("a") if a.get("href", "").startswith("#grid-")] == [
+        "#" + grids[0]["id"]]
     grid = text[text.index('class="grid"'):]
     grid = grid[:grid.index("</table>")]
     head = grid[grid.index("<thead>"):grid.index("</thead>")]

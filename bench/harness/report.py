@@ -2,7 +2,7 @@
 jobs one page per model (``DIR/model-<slug>.html``) linked from it.
 
 Sections follow Lindstrom & Turk 2000: a summary table (sortable and filterable,
-:mod:`bench.harness.report_table`), per model the d_RMS and Hausdorff curves over face
+:mod:`bench.harness.report_table`), per model the d_RMS, FLIP and Hausdorff curves over face
 count (Figures 5 and 6), silhouette histograms (Figure 7), comparison grids of the
 methods side by side (:mod:`bench.harness.report_grid`), a 3D view of the original and
 any LOD orbited together (:mod:`bench.harness.report_viewer`), image sheets with
@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import RecordWarning
-from bench.harness.report_grid import GRID_SCRIPT, comparison_grids
+from bench.harness.report_grid import GRID_SCRIPT, comparison_grids, grid_links
 from bench.harness.report_images import Inline, RunFiles, Shown, difference_png, run_png
 from bench.harness.report_table import SCRIPT, summary_html
 from bench.harness.report_table import cell as _cell
@@ -220,7 +220,7 @@ def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
         keys = {id(r): _image_folders(run_dir, r)[0] for r in own if r["status"] == "ok"}
         view = viewers.section(own, keys, slug, len(_shadings(own)) > 1)
     return [f"<h2 id='m-{slug}'>{_esc(model)}</h2>", _plots(ok, out, slug),
-            _exterior_table(ok), _silhouette_plot(own, out, slug),
+            grid_links(own, images, slug), _exterior_table(ok), _silhouette_plot(own, out, slug),
             comparison_grids(own, images, slug), view,
             _sheets(run_dir, own, refused, out, images)]
 
@@ -331,8 +331,13 @@ def _plots(table, out, slug: str) -> str:
         table.method + " (" + table.shading + ")"
     series = series.map(plot_text)
     imgs = []
-    for column, title in (("d_rms", "d_RMS (luminance, 0-255) vs faces — cf. Figure 5"),
-                          ("hausdorff_mean", "mean Hausdorff (fraction of diagonal) vs faces — cf. Figure 6")):
+    curves = (("d_rms", "d_RMS (luminance, 0-255) vs faces — cf. Figure 5"),
+              ("flip", "FLIP (mean over views, 0-1) vs faces"),
+              ("hausdorff_mean", "mean Hausdorff (fraction of diagonal) vs faces — cf. Figure 6"))
+    for column, title in curves:
+        if column == "flip" and not (column in table and pd.to_numeric(
+                table[column], errors="coerce").gt(0).any()):
+            continue  # FLIP is optional: no record of the run has a value of it
         fig, ax = plt.subplots(figsize=(6, 4))
         for method, group in table.groupby(series):
             # log axes: a value that is not finite and positive has no place on them

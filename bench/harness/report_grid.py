@@ -33,19 +33,32 @@ def _img(shown, alt: str, cls: str) -> str:
     return f"<a href='{shown.href}'>{img}</a>" if shown.href else img
 
 
-def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
-    """The grids of one model's ok ``records``; ``images`` maps ``id(record)`` to its
-    :func:`~bench.harness.report.sheet_images` (views in sheet order)."""
+def _grids(records: list[dict], images: dict, slug: str) -> list[tuple]:
+    """(grid id, budget, shading label, records) of each grid of one model: its ok
+    ``records`` with images, grouped by budget and shading, where two methods or more
+    meet (with one, its sheet says it all)."""
     groups: dict[tuple, list[dict]] = {}
     for r in records:
         if r["status"] == "ok" and id(r) in images:
             groups.setdefault((r["job"]["target_faces"], shading_label(r["job"]["protocol"])),
                               []).append(r)
+    return [(f"grid-{slug}-{n}", target, shading, group)
+            for n, ((target, shading), group) in enumerate(sorted(groups.items()))
+            if len(group) >= 2]
+
+
+def grid_links(records: list[dict], images: dict, slug: str) -> str:
+    """A line linking a model's curves to its comparison grids, one link per grid."""
+    links = [f"<a href='#{grid_id}'>{target} faces, {esc(shading)}</a>"
+             for grid_id, target, shading, _ in _grids(records, images, slug)]
+    return f"<p class='note'>Comparison grids: {' · '.join(links)}</p>" if links else ""
+
+
+def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
+    """The grids of one model's ok ``records``; ``images`` maps ``id(record)`` to its
+    :func:`~bench.harness.report.sheet_images` (views in sheet order)."""
     parts = []
-    for n, ((target, shading), group) in enumerate(sorted(groups.items())):
-        if len(group) < 2:
-            continue  # one method: its sheet says it all
-        grid_id = f"grid-{slug}-{n}"
+    for grid_id, target, shading, group in _grids(records, images, slug):
         head = "<th>view</th><th>original</th>" + "".join(
             f"<th>{esc(r['job']['label'])}</th>" for r in group)
         rows = []
