@@ -46,6 +46,49 @@ def test_use_threads_sets_numbas_threads_within_its_pool(restore_threads):
     assert use_threads(None) == numba.get_num_threads()  # None: left as it is
 
 
+@pytest.mark.parametrize("shading,entropy", [("flat", 0.0), ("gouraud", 0.0), ("flat", 1.0)])
+def test_first_costs_do_not_depend_on_the_threads(shading, entropy, monkeypatch):
+    """The engine's first pass (methods.engine.initial) costs every edge the same, with
+    the same counters, on 1 thread or on 3 sharing chunks of 7 edges."""
+    import methods.engine.initial as initial
+    import methods.engine.simplify as simplify
+    from methods.engine.policy import Policy
+    from methods.imaging.counters import STAT_NAMES
+    from methods.imaging.raster import rasterize_luminance
+    from methods.imaging.state import ImageTerm
+    from metrics.views import silhouette_cameras
+
+    mesh = blob()
+    cameras = silhouette_cameras(mesh)
+    term = ImageTerm(tuple(cameras), rasterize_luminance(mesh, cameras, 40, 40,
+                                                          shading=shading),
+                     shading=shading, weight=1.0, entropy_weight=entropy)
+    monkeypatch.setattr(initial, "CHUNK", 7)
+    seen = []
+
+    def both(mesh_arrays, rules, terms, scratch, images, threads=None):
+        counted = [i for i, name in enumerate(STAT_NAMES) if not name.endswith("cycles")]
+        runs = []
+        for n in (3, 1):  # the single-thread run last: its counters stay in the state
+            before = images.img.stats.copy()
+            out = initial.first_costs(mesh_arrays, rules, terms, scratch, images, n)
+            runs.append((out, (images.img.stats - before)[counted]))
+            if n == 3:
+                images.img.stats[:] = before
+        (three, stats3), (one, stats1) = runs
+        for x, y in zip(three, one):
+            assert np.array_equal(x, y)
+        assert np.array_equal(stats3, stats1) and stats1[0] > 0
+        seen.append(len(one[0]))
+        return one
+
+    monkeypatch.setattr(simplify, "first_costs", both)
+    policy = Policy(placement="endpoints" if entropy else "memoryless",
+                    quadric_weight=0.0, memoryless_weight=0.0, boundary_weight=0.0)
+    simplify.simplify_mesh(mesh, mesh.n_faces // 2, policy, image=term, max_collapses=3)
+    assert seen and seen[0] > 3 * 7
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
 @pytest.mark.parametrize("method", ["image-driven", "entropy-twin"])

@@ -1,7 +1,7 @@
 """The engine's loop (numba), in the steps of meshoptimizer's ``meshopt_simplifyEdge``
 and CGAL's ``Edge_collapse::run``::
 
-    _collect_candidates     cost every edge once and queue it
+    _collect_candidates     queue every edge at its first cost (methods.engine.initial)
     loop:
       _pop_current          pop entries until one is current (re-cost stale ones)
       _check_candidate      the validity rules (methods.engine.topology._check)
@@ -81,22 +81,21 @@ def _remember(queue, rules, a, b, nv, cost):
 
 
 @njit(cache=True)
-def _collect_candidates(heap, mesh, rules, terms, scratch, images, queue):
-    """Cost every edge once (:func:`~methods.engine.topology._candidate_edges`) and
-    queue it with stamps 0."""
-    nv = mesh.P.shape[0]
-    edges = _candidate_edges(mesh, scratch.efaces)
+def _collect_candidates(heap, first, rules, queue, nv):
+    """Queue every edge with stamps 0 at the cost :func:`methods.engine.initial.first_costs`
+    gave it: ``first`` is (edges, costs, kept ends, placements), in edge order."""
+    edges, costs, keeps, places = first
     for e in range(edges.shape[0]):
         a, b = edges[e, 0], edges[e, 1]
-        cost, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
-        _push(heap, cost, a, b, 0, 0, scratch.p, keep)
-        _remember(queue, rules, a, b, nv, cost)
+        _push(heap, costs[e], a, b, 0, 0, places[e], keeps[e])
+        _remember(queue, rules, a, b, nv, costs[e])
+    queue.tally[EVALUATIONS] += edges.shape[0]
 
 
 @njit(cache=True)
 def initial_costs(mesh, rules, terms, scratch, images):
     """The cost of every edge of the mesh before any collapse, as
-    :func:`_collect_candidates` would queue it (same edges, same order), and the area
+    :func:`methods.engine.initial.first_costs` gives it (same edges, same order), and the area
     of each edge's faces: (costs (e,), areas (e,)). Nothing is queued or changed but
     ``scratch``; :func:`methods.engine.simplify._canny_units` measures the base cost's
     scale with it."""
@@ -374,9 +373,10 @@ def _new_queue(nv):
 
 
 @njit(cache=True)
-def _run(mesh, rules, terms, scratch, images, kinds):
+def _run(mesh, rules, terms, scratch, images, kinds, first):
     """Collapse edges of ``mesh`` until ``rules.target`` faces remain, no valid collapse
-    does, or ``rules.max_collapses`` were taken.
+    does, or ``rules.max_collapses`` were taken, starting from every edge's first cost
+    (``first``: :func:`methods.engine.initial.first_costs`).
 
     Returns (stopped (1: no valid collapse remains), evaluations, mismatches, rejects
     (counts by rejection code - 1), log (:data:`~methods.engine.state.Log`, trimmed
@@ -397,8 +397,8 @@ def _run(mesh, rules, terms, scratch, images, kinds):
                       np.empty((BLOCKED_INITIAL, 2), np.int64),
                       np.zeros(BLOCKED_INITIAL, np.bool_), np.full(nv, -1, np.int64),
                       np.zeros(1, np.int64))
-    # Collect: every edge costed once, at the original mesh.
-    _collect_candidates(heap, mesh, rules, terms, scratch, images, queue)
+    # Collect: every edge, costed once at the original mesh before the loop.
+    _collect_candidates(heap, first, rules, queue, nv)
     faces = 0
     for f in range(F.shape[0]):
         if mesh.falive[f]:

@@ -10,6 +10,7 @@ import numpy as np
 
 from bench.io.atlas import wedge_tiles
 from bench.mesh import Mesh
+from methods.engine.initial import first_costs
 from methods.engine.loop import _run, initial_costs
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
 from methods.engine.quadrics import _boundary_corners, initial_quadrics, wedge_quadrics
@@ -107,8 +108,10 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     canny_stats = {}
     if policy.canny_weight != 0.0 and policy.canny_units == "base-cost":
         terms, canny_stats = _canny_units(arrays, rules, terms, images)
-    stopped, evaluations, mismatches, rejects, log = _run(
-        arrays, rules, terms, new_scratch(len(arrays.P)), images, prep.kinds)
+    scratch = new_scratch(len(arrays.P))
+    first = first_costs(arrays, rules, terms, scratch, images)
+    stopped, evaluations, mismatches, rejects, log = _run(arrays, rules, terms, scratch,
+                                                          images, prep.kinds, first)
     image_stats = {} if image is None else image.statistics(
         mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
         arrays.vhead, arrays.cnext, arrays.valive, prep.lo, prep.scale)
