@@ -118,7 +118,7 @@ def _measured_units(mesh):
     ``mesh``, and what :func:`_canny_units` measures: (arrays, terms, scaled terms,
     statistics, initial base costs, areas of each edge's faces)."""
     from methods.engine.canny import texture_borders
-    from methods.engine.loop import initial_costs
+    from methods.engine.initial import edge_areas, first_costs
     from methods.engine.policy import Policy
     from methods.engine.simplify import (
         _canny_units,
@@ -137,7 +137,9 @@ def _measured_units(mesh):
     images = _image_state(mesh, None, arrays, prep, True)
     scaled, stats = _canny_units(arrays, rules, terms, images)
     base = rules._replace(weights=rules.weights._replace(canny=0.0))
-    costs, areas = initial_costs(arrays, base, terms, new_scratch(len(arrays.P)), images)
+    scratch = new_scratch(len(arrays.P))
+    edges, costs, _, _ = first_costs(arrays, base, terms, scratch, images)
+    areas = edge_areas(arrays, scratch, edges)
     return arrays, terms, scaled, stats, costs, areas
 
 

@@ -10,7 +10,7 @@ Every method of the suite that removes edges runs on this engine. The pipeline, 
     _rules, _terms              the policy as codes; the cost terms' inputs
     _image_state                the image term's state, original rendered
     _canny_units                with canny_units="base-cost": the base cost's scale
-                                from every edge's initial cost (initial_costs)
+                                from every edge's first cost (first_costs)
     first_costs (initial.py)    every edge costed once, on the job's threads
     _run (numba, loop.py)       _collect_candidates; then _pop_current, _check_candidate
                                 (or _block), _take (log, collapse, images),

@@ -29,7 +29,7 @@ from numba import njit
 from methods.engine.borrow import borrowed
 from methods.engine.cost import _evaluate
 from methods.engine.state import Images, new_scratch
-from methods.engine.topology import _candidate_edges
+from methods.engine.topology import _candidate_edges, _edge_faces, _faces_area
 from methods.imaging.counters import STAT_RUN_CYCLES, cycles
 
 #: Edges per chunk: small enough that two threads finish together (rendered costs vary
@@ -57,6 +57,17 @@ def _cost_range(lo, hi, edges, mesh, rules, terms, scratch, images, costs, keeps
                                        scratch, images)
         places[e, 0], places[e, 1], places[e, 2] = p[0], p[1], p[2]
     images.img.stats[STAT_RUN_CYCLES] += cycles() - start
+
+
+@njit(cache=True)
+def edge_areas(mesh, scratch, edges):
+    """The area of each edge's faces (e,)."""
+    areas = np.empty(edges.shape[0])
+    for e in range(edges.shape[0]):
+        k = _edge_faces(edges[e, 0], edges[e, 1], mesh.F, mesh.vhead, mesh.cnext,
+                        mesh.falive, scratch.efaces)
+        areas[e] = _faces_area(k, scratch.efaces, mesh.P, mesh.F)
+    return areas
 
 
 def _worker_state(scratch, images):

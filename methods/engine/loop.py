@@ -44,10 +44,8 @@ from methods.engine.state import (
     Queue,
 )
 from methods.engine.topology import (
-    _candidate_edges,
     _check,
     _edge_faces,
-    _faces_area,
     _neighbors,
     _third,
 )
@@ -90,24 +88,6 @@ def _collect_candidates(heap, first, rules, queue, nv):
         _push(heap, costs[e], a, b, 0, 0, places[e], keeps[e])
         _remember(queue, rules, a, b, nv, costs[e])
     queue.tally[EVALUATIONS] += edges.shape[0]
-
-
-@njit(cache=True)
-def initial_costs(mesh, rules, terms, scratch, images):
-    """The cost of every edge of the mesh before any collapse, as
-    :func:`methods.engine.initial.first_costs` gives it (same edges, same order), and the area
-    of each edge's faces: (costs (e,), areas (e,)). Nothing is queued or changed but
-    ``scratch``; :func:`methods.engine.simplify._canny_units` measures the base cost's
-    scale with it."""
-    edges = _candidate_edges(mesh, scratch.efaces)
-    costs = np.empty(edges.shape[0])
-    areas = np.empty(edges.shape[0])
-    for e in range(edges.shape[0]):
-        a, b = edges[e, 0], edges[e, 1]
-        k = _edge_faces(a, b, mesh.F, mesh.vhead, mesh.cnext, mesh.falive, scratch.efaces)
-        areas[e] = _faces_area(k, scratch.efaces, mesh.P, mesh.F)
-        costs[e], _ = _evaluate(a, b, mesh, rules, terms, scratch, images)
-    return costs, areas
 
 
 @njit(cache=True)

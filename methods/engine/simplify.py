@@ -10,8 +10,8 @@ import numpy as np
 
 from bench.io.atlas import wedge_tiles
 from bench.mesh import Mesh
-from methods.engine.initial import first_costs
-from methods.engine.loop import _run, initial_costs
+from methods.engine.initial import edge_areas, first_costs
+from methods.engine.loop import _run
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
 from methods.engine.quadrics import _boundary_corners, initial_quadrics, wedge_quadrics
 from methods.engine.scale import scaled, workable_exponent
@@ -247,7 +247,7 @@ def _canny_units(arrays: MeshArrays, rules: Rules, terms: Terms, images) -> tupl
     "base-cost"``), and what was measured, for the statistics.
 
     Every edge of the mesh is costed once without the penalty, as the loop will queue
-    it (:func:`methods.engine.loop.initial_costs`). The penalty of equation 2 of
+    it (:func:`methods.engine.initial.first_costs`). The penalty of equation 2 of
     González et al. 2007, the area ratio r_e = a_e / A_T (a_e the area of the edge's
     faces, A_T the mesh's), becomes r_e × c̄ / r̄: c̄ is the mean of the finite
     initial base costs and r̄ the mean of r_e over the same edges, so per unit of area
@@ -266,7 +266,9 @@ def _canny_units(arrays: MeshArrays, rules: Rules, terms: Terms, images) -> tupl
     :data:`CANNY_NOISE_FACTOR` times it, the penalty is r_e / r̄, a pure number that
     alone orders the edges, as equation 2 does among equal costs."""
     base = rules._replace(weights=rules.weights._replace(canny=0.0))
-    costs, areas = initial_costs(arrays, base, terms, new_scratch(len(arrays.P)), images)
+    scratch = new_scratch(len(arrays.P))
+    edges, costs, _, _ = first_costs(arrays, base, terms, scratch, images)
+    areas = edge_areas(arrays, scratch, edges)
     finite = np.isfinite(costs)
     costs, areas = costs[finite], areas[finite]
     mean_cost = float(costs.mean()) if len(costs) else 0.0
