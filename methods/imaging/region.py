@@ -106,11 +106,12 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     stats, ent = img.stats, img.ent
     start = cycles()
     # Holes: the pixels whose face changes; the others keep their face and depth.
-    hc0, hc1, hr0, hr1 = _open_holes(h, rect, img, iws, atick)
+    hc0, hc1, hr0, hr1, htick = _open_holes(h, rect, img, iws, atick)
     # The changed faces, over the whole rectangle.
     n = _scan_changed(h, rect, na, u, v, sp, F, img, iws)
     if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
-        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, sp, F, falive, img, tiles, iws)
+        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, na, n, sp, F, falive, img,
+                        tiles, iws)
     mid = cycles()
     if ent.on:  # viewpoint entropy: the count changes inside the rectangle
         dh = _entropy_change(h, rect, iws.ids, img.IDS, ent, commit)
@@ -137,9 +138,14 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
 def _open_holes(h, rect, img, iws, atick):
     """Start ``iws.depth``/``iws.ids`` (rectangle-relative) from view ``h``'s current
     depth and faces, with the pixels of changed faces (``gmark == atick``) emptied;
-    returns the holes' bounding box (c0, c1, r0, r1), empty when c0 > c1."""
-    IDS, DZ, gmark, depth, ids = img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids
+    returns the holes' bounding box (c0, c1, r0, r1), empty when c0 > c1, and the
+    stamp of the tiles holding a hole (``iws.hmark``)."""
+    IDS, DZ, gmark, depth, ids, hmark = (img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids,
+                                         iws.hmark)
     height, width = img.Y.shape[1], img.Y.shape[2]
+    nx = -(-width // TILE)
+    iws.tick[0] += 1
+    htick = iws.tick[0]
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     hc0, hc1, hr0, hr1 = width, -1, height, -1
     for r in range(r0, r1 + 1):
@@ -150,10 +156,11 @@ def _open_holes(h, rect, img, iws, atick):
                 ids[r - r0, c - c0] = -1
                 hc0, hc1 = min(hc0, c), max(hc1, c)
                 hr0, hr1 = min(hr0, r), max(hr1, r)
+                hmark[(r // TILE) * nx + c // TILE] = htick
             else:
                 depth[r - r0, c - c0] = DZ[h, r, c]
                 ids[r - r0, c - c0] = w
-    return hc0, hc1, hr0, hr1
+    return hc0, hc1, hr0, hr1, htick
 
 
 @njit(cache=True)
@@ -176,9 +183,13 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws):
 
 
 @njit(cache=True)
-def _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, sp, F, falive, img, tiles, iws):
-    """Scan every other face whose box meets the holes' box (from the tile index) over
-    that box, as table rows n..; returns the new row count."""
+def _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, na, n, sp, F, falive, img, tiles,
+                iws):
+    """Scan every other face whose box meets the holes' box in a tile holding a hole
+    (``iws.hmark == htick``; from the tile index) over that box, as table rows n..;
+    returns the new row count. A face that reaches no hole changes no pixel: every kept
+    pixel shows the nearest of the faces before the collapse, so no unchanged face can
+    beat it."""
     mark, tick, cand, rowof, t, aff = iws.mark, iws.tick, iws.cand, iws.rowof, iws.t, iws.aff
     width = img.Y.shape[2]
     r0, c0 = rect[2], rect[0]
@@ -189,7 +200,7 @@ def _fill_holes(h, rect, hc0, hc1, hr0, hr1, na, n, sp, F, falive, img, tiles, i
     hole[0], hole[1], hole[2], hole[3] = hc0, hc1, hr0, hr1
     g0 = cycles()
     n2 = _gather(tiles, h, hole, img.fbox, falive, mark, tick[0], cand, n, TILE,
-                 -(-width // TILE))
+                 -(-width // TILE), iws.hmark, htick)
     img.stats[STAT_GATHER_CYCLES] += cycles() - g0
     hole_depth = iws.depth[hr0 - r0:, hc0 - c0:]  # views indexed from the holes' corner
     hole_ids = iws.ids[hr0 - r0:, hc0 - c0:]

@@ -87,12 +87,16 @@ def _overlaps(box, rect):
 
 
 @njit(cache=True)
-def _gather(tiles, h, rect, fbox, falive, mark, tick, cand, n, tile, nx):
-    """Append to ``cand[n:]`` the live, unmarked faces whose box overlaps ``rect``."""
+def _gather(tiles, h, rect, fbox, falive, mark, tick, cand, n, tile, nx, tmark, ttick):
+    """Append to ``cand[n:]`` the live, unmarked faces whose box overlaps ``rect``,
+    looking only in the tiles marked ``tmark == ttick`` (the tiles where something is
+    to be drawn; a face listed in no such tile draws nothing there)."""
     ptr, cnt, items = tiles.ptr, tiles.cnt, tiles.items
     for ty in range(rect[2] // tile, rect[3] // tile + 1):
         for tx in range(rect[0] // tile, rect[1] // tile + 1):
             i = ty * nx + tx
+            if tmark[i] != ttick:
+                continue
             for k in range(ptr[h, i], ptr[h, i] + cnt[h, i]):
                 f = items[k]
                 if mark[f] != tick and falive[f] and _overlaps(fbox[h, f], rect):
