@@ -7,6 +7,8 @@ renderer (metrics.render) with MSAA off.
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.mesh import Mesh
 from conftest import icosphere
@@ -248,3 +250,68 @@ def test_textured_matches_evaluation_renderer_where_textures_are_not_minified():
     value = _d_rms(rasterize_luminance(mesh, cameras, 256, 256, "flat"), luminance(images))
     print(f"d_rms(textured) = {value:.4f}")
     assert value <= 1.0
+
+
+# -- the depth bound of a face (methods.imaging.raster.behind) -----------------------------
+
+def _row(xs, ys, zs):
+    from methods.imaging.raster import ROW, T_W, T_X, T_Y, T_Z
+
+    t = np.zeros((1, ROW))
+    t[0, T_X:T_X + 3], t[0, T_Y:T_Y + 3], t[0, T_Z:T_Z + 3] = xs, ys, zs
+    t[0, T_W:T_W + 3] = 1.0
+    return t
+
+
+def test_a_face_is_behind_only_a_nearer_depth():
+    from methods.imaging.raster import behind
+
+    t = _row([2.0, 20.0, 5.0], [3.0, 6.0, 18.0], [0.5, 0.6, 0.7])
+    assert behind(t, 0, 0.4999)
+    assert not behind(t, 0, 0.5)  # a tie can go to the face
+    assert not behind(t, 0, np.inf)
+    sliver = _row([2.0, 20.0, 11.0], [3.0, 3.0, 3.0 + 1e-15], [0.5, 0.6, 0.7])
+    assert not behind(sliver, 0, 0.4)  # S / area is not near 1: no bound
+
+
+coord = st.floats(-6.0, 40.0, allow_nan=False)
+depth_value = st.floats(-1.0, 1.0, allow_nan=False)
+# corners at one depth too: rounding then takes a pixel's depth just past the corners'
+depths = st.one_of(st.tuples(depth_value, depth_value, depth_value),
+                   depth_value.map(lambda z: (z, z, z)))
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.tuples(coord, coord, coord), st.tuples(coord, coord, coord),
+       depths, st.sampled_from([0.0, 1e-16, 1e-14, 1e-12, 1e-9, 1e-6, 1e-3]))
+def test_a_face_behind_wins_no_pixel(xs, ys, zs, gap):
+    """Whenever the bound says a face is behind depth ``far``, scan-converting it over a
+    buffer at ``far`` everywhere (ties going to the face) changes no pixel."""
+    from methods.imaging.raster import behind, scan_row
+
+    t = _row(xs, ys, zs)
+    far = np.nextafter(min(zs), -np.inf) if gap == 1e-16 else min(zs) - gap
+    depth = np.full((48, 48), far)
+    ids = np.full((48, 48), 10**9, np.int64)
+    if behind(t, 0, far):
+        scan_row(t, 0, 1, 0, 47, 0, 47, False, depth, ids)
+        assert (ids == 10**9).all() and (depth == far).all()
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.tuples(coord, coord), st.tuples(coord, coord), st.floats(0.0, 1.0),
+       st.sampled_from([0.0, 1e-15, 1e-13, 1e-11, 1e-9, 1e-6, 1e-3]),
+       depths, st.sampled_from([0.0, 1e-16, 1e-14, 1e-12, 1e-9]))
+def test_a_sliver_behind_wins_no_pixel(a, b, s, offset, zs, gap):
+    """As above for slivers: the third corner on the segment from a to b, moved off it
+    by ``offset`` pixels, where rounding moves the edge functions' sum most."""
+    from methods.imaging.raster import behind, scan_row
+
+    c = (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]) + offset)
+    t = _row([a[0], b[0], c[0]], [a[1], b[1], c[1]], zs)
+    far = np.nextafter(min(zs), -np.inf) if gap == 1e-16 else min(zs) - gap
+    depth = np.full((48, 48), far)
+    ids = np.full((48, 48), 10**9, np.int64)
+    if behind(t, 0, far):
+        scan_row(t, 0, 1, 0, 47, 0, 47, False, depth, ids)
+        assert (ids == 10**9).all() and (depth == far).all()

@@ -211,6 +211,41 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
     return (rmax - rmin + 1) * (cmax - cmin + 1)
 
 
+#: Relative rounding error of a double (2^-52).
+EPS = 2.0 ** -52
+
+
+@njit(cache=True)
+def behind(t, k, far):
+    """Whether :func:`scan_row` of row ``k`` can win no pixel whose current depth is at
+    most ``far``: a lower bound of every depth it computes inside the face is above
+    ``far``. Inside the face each edge function e_i is >= 0 and their sum S is the
+    face's doubled area up to rounding, so the depth (sum e_i z_i) / area lies within
+    the corners' z scaled by S / area; the bound takes the rounding of the edge
+    functions (a few units of the largest products, over the face's box) and of the sum
+    into account, and gives up (False) on slivers, where S / area is not near 1."""
+    if not far < np.inf:
+        return False
+    z0, z1, z2 = t[k, T_Z], t[k, T_Z + 1], t[k, T_Z + 2]
+    zmin = min(z0, z1, z2)
+    if not zmin > far:  # also NaN
+        return False
+    x0, x1, x2 = t[k, T_X], t[k, T_X + 1], t[k, T_X + 2]
+    y0, y1, y2 = t[k, T_Y], t[k, T_Y + 1], t[k, T_Y + 2]
+    area = abs((x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0))
+    xspan = max(x0, x1, x2) - min(x0, x1, x2) + 1.0
+    yspan = max(y0, y1, y2) - min(y0, y1, y2) + 1.0
+    dx = abs(x2 - x1) + abs(x0 - x2) + abs(x1 - x0)
+    dy = abs(y2 - y1) + abs(y0 - y2) + abs(y1 - y0)
+    err = 16.0 * EPS * (dx * yspan + dy * xspan)
+    if not (area > 0.0 and err < 0.5 * area and np.isfinite(err)):
+        return False
+    r = err / area
+    zabs = max(abs(z0), abs(z1), abs(z2))
+    lower = min(zmin * (1.0 - r), zmin * (1.0 + r)) - 16.0 * EPS * zabs * (1.0 + r)
+    return lower > far
+
+
 @njit(cache=True)
 def shade_pixel(t, k, px, py, eye, shading, texture):
     """Luminance (0..255) of table row ``k`` at pixel centre (px, py) under ``shading``

@@ -19,7 +19,7 @@ from methods.imaging.counters import (
     cycles,
 )
 from methods.imaging.entropy import _entropy_change
-from methods.imaging.raster import scan_row, shade_pixel
+from methods.imaging.raster import behind, scan_row, shade_pixel
 from methods.imaging.rows import (
     _light,
     _pos,
@@ -106,9 +106,9 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     stats, ent = img.stats, img.ent
     start = cycles()
     # Holes: the pixels whose face changes; the others keep their face and depth.
-    hc0, hc1, hr0, hr1, htick = _open_holes(h, rect, img, iws, atick)
+    hc0, hc1, hr0, hr1, htick, far = _open_holes(h, rect, img, iws, atick)
     # The changed faces, over the whole rectangle.
-    n = _scan_changed(h, rect, na, u, v, sp, F, img, iws)
+    n = _scan_changed(h, rect, na, u, v, sp, F, img, iws, far)
     if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
         n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, na, n, sp, F, falive, img,
                         tiles, iws)
@@ -138,8 +138,9 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
 def _open_holes(h, rect, img, iws, atick):
     """Start ``iws.depth``/``iws.ids`` (rectangle-relative) from view ``h``'s current
     depth and faces, with the pixels of changed faces (``gmark == atick``) emptied;
-    returns the holes' bounding box (c0, c1, r0, r1), empty when c0 > c1, and the
-    stamp of the tiles holding a hole (``iws.hmark``)."""
+    returns the holes' bounding box (c0, c1, r0, r1), empty when c0 > c1, the
+    stamp of the tiles holding a hole (``iws.hmark``) and the rectangle's farthest
+    depth (infinite with a hole or an empty pixel)."""
     IDS, DZ, gmark, depth, ids, hmark = (img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids,
                                          iws.hmark)
     height, width = img.Y.shape[1], img.Y.shape[2]
@@ -148,6 +149,7 @@ def _open_holes(h, rect, img, iws, atick):
     htick = iws.tick[0]
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     hc0, hc1, hr0, hr1 = width, -1, height, -1
+    far = -np.inf
     for r in range(r0, r1 + 1):
         for c in range(c0, c1 + 1):
             w = IDS[h, r, c]
@@ -157,16 +159,20 @@ def _open_holes(h, rect, img, iws, atick):
                 hc0, hc1 = min(hc0, c), max(hc1, c)
                 hr0, hr1 = min(hr0, r), max(hr1, r)
                 hmark[(r // TILE) * nx + c // TILE] = htick
+                far = np.inf
             else:
-                depth[r - r0, c - c0] = DZ[h, r, c]
+                z = DZ[h, r, c]
+                depth[r - r0, c - c0] = z
                 ids[r - r0, c - c0] = w
-    return hc0, hc1, hr0, hr1, htick
+                far = max(far, z)
+    return hc0, hc1, hr0, hr1, htick, far
 
 
 @njit(cache=True)
-def _scan_changed(h, rect, na, u, v, sp, F, img, iws):
+def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
     """Scan the changed faces ``iws.aff[:na]`` (after the collapse, those of the edge
-    gone) over ``rect``; they become table rows 0..n-1. Returns n."""
+    gone) over ``rect``; they become table rows 0..n-1. Returns n. A face wholly behind
+    the rectangle's farthest depth ``far`` is not scanned: it would win no pixel."""
     cand, rowof, t, aff = iws.cand, iws.rowof, iws.t, iws.aff
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     n = 0
@@ -177,7 +183,8 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws):
         cand[n] = f
         rowof[f] = n
         fill_screen(t, n, f, h, u, v, sp, img.S, F)
-        scan_row(t, n, f, c0, c1, r0, r1, img.cull[h], iws.depth, iws.ids)
+        if not behind(t, n, far):
+            scan_row(t, n, f, c0, c1, r0, r1, img.cull[h], iws.depth, iws.ids)
         n += 1
     return n
 
