@@ -110,8 +110,8 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     # The changed faces, over the whole rectangle.
     n = _scan_changed(h, rect, na, u, v, sp, F, img, iws, far)
     if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
-        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, na, n, sp, F, falive, img,
-                        tiles, iws)
+        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, atick, na, n, sp, F, falive,
+                        img, tiles, iws)
     mid = cycles()
     if ent.on:  # viewpoint entropy: the count changes inside the rectangle
         dh = _entropy_change(h, rect, iws.ids, img.IDS, ent, commit)
@@ -190,13 +190,14 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
 
 
 @njit(cache=True)
-def _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, na, n, sp, F, falive, img, tiles,
-                iws):
+def _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, atick, na, n, sp, F, falive, img,
+                tiles, iws):
     """Scan every other face whose box meets the holes' box in a tile holding a hole
     (``iws.hmark == htick``; from the tile index) over that box, as table rows n..;
     returns the new row count. A face that reaches no hole changes no pixel: every kept
     pixel shows the nearest of the faces before the collapse, so no unchanged face can
-    beat it."""
+    beat it. For the same reason a face wholly behind the farthest depth the changed
+    faces left in the holes is not scanned."""
     mark, tick, cand, rowof, t, aff = iws.mark, iws.tick, iws.cand, iws.rowof, iws.t, iws.aff
     width = img.Y.shape[2]
     r0, c0 = rect[2], rect[0]
@@ -211,11 +212,18 @@ def _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, na, n, sp, F, falive, img, t
     img.stats[STAT_GATHER_CYCLES] += cycles() - g0
     hole_depth = iws.depth[hr0 - r0:, hc0 - c0:]  # views indexed from the holes' corner
     hole_ids = iws.ids[hr0 - r0:, hc0 - c0:]
+    far = -np.inf  # the farthest depth in a hole, after the changed faces' scan
+    for r in range(hr0, hr1 + 1):
+        for c in range(hc0, hc1 + 1):
+            w = img.IDS[h, r, c]
+            if w >= 0 and iws.gmark[w] == atick:
+                far = max(far, hole_depth[r - hr0, c - hc0])
     for k in range(n, n2):
         f = cand[k]
         rowof[f] = k
         fill_screen(t, k, f, h, -1, -1, sp, img.S, F)
-        scan_row(t, k, f, hc0, hc1, hr0, hr1, img.cull[h], hole_depth, hole_ids)
+        if not behind(t, k, far):
+            scan_row(t, k, f, hc0, hc1, hr0, hr1, img.cull[h], hole_depth, hole_ids)
     return n2
 
 
