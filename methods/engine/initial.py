@@ -101,20 +101,29 @@ def first_costs(mesh, rules, terms, scratch, images, threads: int | None = None)
     states = [_worker_state(scratch, images) for _ in range(threads)]
     taken = iter(chunks)
     lock = threading.Lock()
+    stop = threading.Event()  # an error (or Ctrl-C) anywhere: take no more chunks
 
     def work(state):
         own_scratch, own_images = state
-        while True:
-            with lock:
-                chunk = next(taken, None)
-            if chunk is None:
-                return
-            _cost_range(chunk[0], chunk[1], edges, mesh, rules, terms, own_scratch,
-                        own_images, *out)
+        try:
+            while not stop.is_set():
+                with lock:
+                    chunk = next(taken, None)
+                if chunk is None:
+                    return
+                _cost_range(chunk[0], chunk[1], edges, mesh, rules, terms, own_scratch,
+                            own_images, *out)
+        except BaseException:
+            stop.set()
+            raise
 
     with ThreadPoolExecutor(threads, thread_name_prefix="first-costs") as pool:
-        for done in [pool.submit(work, state) for state in states]:
-            done.result()  # the first error, if any, is raised here
+        try:
+            for done in [pool.submit(work, state) for state in states]:
+                done.result()  # the first error, if any, is raised here
+        except BaseException:
+            stop.set()
+            raise
     for _, own in states:
         images.img.stats[:] += own.img.stats
     return (edges, *out)
