@@ -89,6 +89,32 @@ def test_first_costs_do_not_depend_on_the_threads(shading, entropy, monkeypatch)
     assert seen and seen[0] > 3 * 7
 
 
+def test_an_error_in_the_first_pass_stops_every_thread(monkeypatch):
+    """An error while costing one chunk is raised, and no thread takes another chunk."""
+    import threading
+
+    import methods.engine.initial as initial
+    from methods.engine.policy import Policy
+    from methods.engine.simplify import simplify_mesh
+
+    monkeypatch.setattr(initial, "CHUNK", 4)
+    calls = []
+    lock = threading.Lock()
+
+    def failing(lo, hi, *args):
+        with lock:
+            calls.append(lo)
+            if len(calls) == 3:
+                raise ValueError("a collapse affects more faces than AFFECTED_CAP")
+
+    monkeypatch.setattr(initial, "_cost_range", failing)
+    monkeypatch.setattr(initial.numba, "get_num_threads", lambda: 2)
+    mesh = blob()
+    with pytest.raises(ValueError, match="AFFECTED_CAP"):
+        simplify_mesh(mesh, 10, Policy())
+    assert len(calls) <= 10 < 3 * mesh.n_faces // 2 // 4  # not the other chunks
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
 @pytest.mark.parametrize("method", ["image-driven", "entropy-twin"])
