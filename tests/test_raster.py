@@ -274,6 +274,18 @@ def test_a_face_is_behind_only_a_nearer_depth():
     assert not behind(sliver, 0, 0.4)  # S / area is not near 1: no bound
 
 
+def _assert_draws_nothing_if_behind(t, far):
+    """If :func:`behind` says row 0 is behind ``far``, scanning it over a buffer at
+    ``far`` everywhere (ties going to the face) changes no pixel."""
+    from methods.imaging.raster import behind, scan_row
+
+    depth = np.full((48, 48), far)
+    ids = np.full((48, 48), 10**9, np.int64)
+    if behind(t, 0, far):
+        scan_row(t, 0, 1, 0, 47, 0, 47, False, depth, ids)
+        assert (ids == 10**9).all() and (depth == far).all()
+
+
 coord = st.floats(-6.0, 40.0, allow_nan=False)
 depth_value = st.floats(-1.0, 1.0, allow_nan=False)
 # corners at one depth too: rounding then takes a pixel's depth just past the corners'
@@ -287,15 +299,9 @@ depths = st.one_of(st.tuples(depth_value, depth_value, depth_value),
 def test_a_face_behind_wins_no_pixel(xs, ys, zs, gap):
     """Whenever the bound says a face is behind depth ``far``, scan-converting it over a
     buffer at ``far`` everywhere (ties going to the face) changes no pixel."""
-    from methods.imaging.raster import behind, scan_row
-
     t = _row(xs, ys, zs)
     far = np.nextafter(min(zs), -np.inf) if gap == 1e-16 else min(zs) - gap
-    depth = np.full((48, 48), far)
-    ids = np.full((48, 48), 10**9, np.int64)
-    if behind(t, 0, far):
-        scan_row(t, 0, 1, 0, 47, 0, 47, False, depth, ids)
-        assert (ids == 10**9).all() and (depth == far).all()
+    _assert_draws_nothing_if_behind(t, far)
 
 
 @settings(max_examples=400, deadline=None)
@@ -305,13 +311,7 @@ def test_a_face_behind_wins_no_pixel(xs, ys, zs, gap):
 def test_a_sliver_behind_wins_no_pixel(a, b, s, offset, zs, gap):
     """As above for slivers: the third corner on the segment from a to b, moved off it
     by ``offset`` pixels, where rounding moves the edge functions' sum most."""
-    from methods.imaging.raster import behind, scan_row
-
     c = (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]) + offset)
     t = _row([a[0], b[0], c[0]], [a[1], b[1], c[1]], zs)
     far = np.nextafter(min(zs), -np.inf) if gap == 1e-16 else min(zs) - gap
-    depth = np.full((48, 48), far)
-    ids = np.full((48, 48), 10**9, np.int64)
-    if behind(t, 0, far):
-        scan_row(t, 0, 1, 0, 47, 0, 47, False, depth, ids)
-        assert (ids == 10**9).all() and (depth == far).all()
+    _assert_draws_nothing_if_behind(t, far)
