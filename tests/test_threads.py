@@ -90,7 +90,8 @@ def test_first_costs_do_not_depend_on_the_threads(shading, entropy, monkeypatch)
 
 
 def test_an_error_in_the_first_pass_stops_every_thread(monkeypatch):
-    """An error while costing one chunk is raised, and no thread takes another chunk."""
+    """An error while costing one chunk is raised, and the other thread stops taking
+    chunks (it may finish the one it holds)."""
     import threading
 
     import methods.engine.initial as initial

@@ -134,6 +134,12 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     return cost
 
 
+@njit(cache=True, inline="always")
+def _is_hole(w, gmark, atick):
+    """Whether a pixel showing face ``w`` (-1: none) is a hole: its face changes."""
+    return w >= 0 and gmark[w] == atick
+
+
 @njit(cache=True)
 def _open_holes(h, rect, img, iws, atick):
     """Start ``iws.depth``/``iws.ids`` (rectangle-relative) from view ``h``'s current
@@ -153,7 +159,7 @@ def _open_holes(h, rect, img, iws, atick):
     for r in range(r0, r1 + 1):
         for c in range(c0, c1 + 1):
             w = IDS[h, r, c]
-            if w >= 0 and gmark[w] == atick:
+            if _is_hole(w, gmark, atick):
                 depth[r - r0, c - c0] = np.inf
                 ids[r - r0, c - c0] = -1
                 hc0, hc1 = min(hc0, c), max(hc1, c)
@@ -215,8 +221,7 @@ def _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, atick, na, n, sp, F, falive,
     far = -np.inf  # the farthest depth in a hole, after the changed faces' scan
     for r in range(hr0, hr1 + 1):
         for c in range(hc0, hc1 + 1):
-            w = img.IDS[h, r, c]
-            if w >= 0 and iws.gmark[w] == atick:
+            if _is_hole(img.IDS[h, r, c], iws.gmark, atick):
                 far = max(far, hole_depth[r - hr0, c - hc0])
     for k in range(n, n2):
         f = cand[k]
