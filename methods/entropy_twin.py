@@ -331,4 +331,5 @@ class EntropyTwin(Method):
             "mean_view_entropy": float(np.mean(s["view_entropy"])),
             "engine_seconds": s["engine_seconds"],
             "seconds": time.perf_counter() - start})
+        stats.update({k: v for k, v in s.items() if k.startswith("ahead_")})
         return SimplifyResult(out, stats, result.stop_reason)

@@ -10,6 +10,7 @@ import numpy as np
 
 from bench.io.atlas import wedge_tiles
 from bench.mesh import Mesh
+from methods.engine.ahead import ahead_statistics, costs_ahead
 from methods.engine.initial import edge_areas, first_costs
 from methods.engine.loop import _run
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
@@ -110,8 +111,9 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
         terms, canny_stats = _canny_units(arrays, rules, terms, images)
     scratch = new_scratch(len(arrays.P))
     first = first_costs(arrays, rules, terms, scratch, images)
-    stopped, evaluations, mismatches, rejects, log = _run(arrays, rules, terms, scratch,
-                                                          images, prep.kinds, first)
+    with costs_ahead(arrays, rules, terms, scratch, images) as ahead:
+        stopped, evaluations, mismatches, rejects, log = _run(arrays, rules, terms, scratch,
+                                                              images, prep.kinds, first, ahead)
     image_stats = {} if image is None else image.statistics(
         mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
         arrays.vhead, arrays.cnext, arrays.valive, prep.lo, prep.scale)
@@ -131,6 +133,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
                         time.perf_counter() - start)
     stats.update(image_stats)
     stats.update(canny_stats)
+    stats.update(ahead_statistics(ahead))
     if tiles is not None:
         stats["uvs_kept_in_tile"] = clamped
     out_log, Q, valive = _log_in_input_numbering(log, prep, arrays, tiles)
