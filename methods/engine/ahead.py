@@ -185,7 +185,7 @@ def _serve(row, tiles, ahead, mesh, rules, terms, scratch, images):
         if g == _load_acquire(signal, finished):
             _sched_yield()
             continue
-        if ahead.count[AHEAD_TILES] != tiles:
+        if _load_acquire(ahead.count, AHEAD_TILES) != tiles:  # bumped before g was handed
             return RETILE
         _cost_row(row, ahead, mesh, rules, terms, scratch, images)
         _store_release(signal, finished, g)
@@ -265,7 +265,9 @@ def share_tiles(ahead, tiles):
 
 
 def ahead_statistics(ahead) -> dict:
-    """The batches' counters, for the run's statistics (empty when none ran)."""
+    """The batches' counters, for the run's statistics (empty when none ran):
+    batches handed out, edges the helpers costed, and re-costs the loop took from a
+    batch instead of evaluating them."""
     count = ahead.count
     if count[AHEAD_BATCHES] == 0:
         return {}
