@@ -45,6 +45,7 @@ from methods.engine.cost import _evaluate
 from methods.engine.initial import _worker_state
 from methods.engine.state import EVALUATIONS, Images
 from methods.engine.topology import _edge_faces
+from methods.imaging.counters import STAT_RUN_CYCLES, cycles
 
 #: The costs computed ahead of the loop, one row per thread: ``edges`` (k, 2) in the
 #: order the loop would pop them, their ``costs`` (k,), kept ends ``keeps`` (k,; -1:
@@ -187,7 +188,11 @@ def _serve(row, tiles, ahead, mesh, rules, terms, scratch, images):
             continue
         if _load_acquire(ahead.count, AHEAD_TILES) != tiles:  # bumped before g was handed
             return RETILE
+        start = cycles()
         _cost_row(row, ahead, mesh, rules, terms, scratch, images)
+        # Its working cycles join the run's, so that the image counters' shares of
+        # them stay shares of all the work done (as the first pass's do).
+        images.img.stats[STAT_RUN_CYCLES] += cycles() - start
         _store_release(signal, finished, g)
 
 
