@@ -192,17 +192,59 @@ def test_costs_computed_ahead_change_nothing(entropy, monkeypatch):
         assert np.array_equal(one.log[key], three.log[key])
 
 
-def test_a_failing_helper_fails_the_run(monkeypatch):
-    """An error in a helper thread is raised by the run, which does not wait for it."""
+def _run_with_failing_helper(monkeypatch, serve):
+    """Run the image term on 2 threads with ``serve`` in place of the helpers' loop, in
+    a thread of its own so that a loop waiting for ever fails the test instead of
+    hanging it: the error the run raised."""
+    import threading
+
     import methods.engine.ahead as ahead
     from conftest import icosphere
+
+    outcome = []
+
+    def run():
+        try:
+            _image_run(icosphere(3), 40, 2, monkeypatch)
+        except BaseException as error:  # noqa: BLE001 - the caller looks at it
+            outcome.append(error)
+
+    monkeypatch.setattr(ahead, "_serve", serve)
+    loop = threading.Thread(target=run, daemon=True)
+    loop.start()
+    loop.join(timeout=120)
+    assert not loop.is_alive(), "the loop kept waiting for a helper that had failed"
+    assert len(outcome) == 1, "the run finished although its helper failed"
+    return outcome[0]
+
+
+def test_a_failing_helper_fails_the_run(monkeypatch):
+    """An error in a helper thread is raised by the run, which does not wait for it."""
 
     def failing(*args):
         raise ValueError("a collapse affects more faces than AFFECTED_CAP")
 
-    monkeypatch.setattr(ahead, "_serve", failing)
-    with pytest.raises(ValueError, match="AFFECTED_CAP"):
-        _image_run(icosphere(3), 40, 2, monkeypatch)
+    error = _run_with_failing_helper(monkeypatch, failing)
+    assert isinstance(error, ValueError) and "AFFECTED_CAP" in str(error)
+
+
+def test_a_helper_failing_mid_run_fails_the_run(monkeypatch):
+    """A helper that fails while the loop waits for its row of a batch (here: on its
+    way back after the first tile rebuild) makes the loop raise instead of waiting for
+    ever, and the run raises the helper's error."""
+    import methods.engine.ahead as ahead
+
+    real, calls = ahead._serve, []
+
+    def fails_second_time(*args):
+        calls.append(args[0])
+        if len(calls) > 1:
+            raise ValueError("a collapse affects more faces than AFFECTED_CAP")
+        return real(*args)
+
+    error = _run_with_failing_helper(monkeypatch, fails_second_time)
+    assert calls == [1, 1]
+    assert isinstance(error, ValueError) and "AFFECTED_CAP" in str(error)
 
 
 def _peek_oracle(entries, a, b, valive, stamp, pushed_at, rows, per_row):
@@ -227,8 +269,8 @@ def _peek_oracle(entries, a, b, valive, stamp, pushed_at, rows, per_row):
 @settings(max_examples=60, deadline=None)
 def test_peek_takes_the_entries_the_loop_would_recost_next(data):
     """``_peek`` fills a batch with the stale, live, not superseded entries in pop order
-    up to the first current one, each edge once, and leaves the heap's entries as they
-    were."""
+    up to the first current one, each edge once, and leaves the heap as it was: the same
+    entries, still popping in order."""
     import heapq
     from collections import namedtuple
 
@@ -254,4 +296,4 @@ def test_peek_takes_the_entries_the_loop_would_recost_next(data):
     n = _peek(heap, 0, 1, Mesh(valive), Queue(stamp, pushed_at), batch)
     want = _peek_oracle(entries, 0, 1, valive, stamp, pushed_at, rows, PEEK_PER_ROW)
     assert [tuple(e) for e in batch.edges[:n]] == want
-    assert sorted(heap) == sorted(entries)
+    assert [heapq.heappop(heap) for _ in range(len(heap))] == sorted(entries)

@@ -300,10 +300,7 @@ def costs_ahead(mesh, rules, terms, scratch, images, threads: int | None = None)
         yield ahead
         return
     handle = next(_HANDLES)
-    _TILES[handle] = images.tiles
-    ahead.count[AHEAD_HANDLE] = handle
-    states = [_worker_state(scratch, images) for _ in range(1, rows)]
-    errors = []
+    states, helpers, errors = [], [], []
 
     def serve(row, own_scratch, own_images):
         try:
@@ -316,19 +313,24 @@ def costs_ahead(mesh, rules, terms, scratch, images, threads: int | None = None)
             errors.append(error)
             ahead.count[AHEAD_FAILED] = 1
 
-    helpers = [threading.Thread(target=serve, args=(row, *state), daemon=True,
-                                name=f"costs-ahead-{row}")
-               for row, state in enumerate(states, start=1)]
-    for helper in helpers:
-        helper.start()
+    # Everything from here on is undone by the finally, whatever fails on the way: the
+    # helpers started are told to quit and joined, and their counters are kept.
     try:
+        _TILES[handle] = images.tiles
+        ahead.count[AHEAD_HANDLE] = handle
+        for row in range(1, rows):
+            states.append(_worker_state(scratch, images))
+            helper = threading.Thread(target=serve, args=(row, *states[-1]), daemon=True,
+                                      name=f"costs-ahead-{row}")
+            helper.start()
+            helpers.append(helper)
         yield ahead
     finally:
         for row in range(1, rows):
             ahead.signal[row * LINE] = QUIT
         for helper in helpers:
             helper.join()
-        del _TILES[handle]
+        _TILES.pop(handle, None)
         for _, own in states:
             images.img.stats[:] += own.img.stats
         if errors:
