@@ -119,8 +119,9 @@ def _every_centre(x, y, z, c_lo, c_hi, r_lo, r_hi, depth, ids, fid):
 
 def test_a_row_ends_where_it_leaves_the_triangle_exactly():
     """scan_row stops a pixel row at the first centre outside the triangle after the
-    inside run; a test of every centre of the box gives the same depths and ids, bit for
-    bit, for slivers, centres on edges and vertices, and both windings."""
+    inside run, and in a wide box starts it near the triangle's left edge; a test of
+    every centre of the box gives the same depths and ids, bit for bit, for slivers,
+    centres on edges and vertices, and both windings."""
     from methods.imaging.raster import ROW, T_W, T_X, T_Y, T_Z, scan_row
 
     rng = np.random.default_rng(7)

@@ -137,6 +137,45 @@ T_UV = 36  # corner texture coordinates, 3 x 2
 ROW = 42
 
 
+#: Boxes at least this many columns wide start each row near the triangle's left edge
+#: (:func:`_row_start`); narrower ones at the box's left.
+WIDE_BOX = 8
+
+
+@njit(cache=True, inline="always")
+def _fails(px, py, xa, ya, dx, dy, tl):
+    """Whether the centre (px, py) is outside the edge from (xa, ya) along (dx, dy)."""
+    e = dx * (py - ya) - dy * (px - xa)
+    return e < 0.0 or (e == 0.0 and not tl)
+
+
+@njit(cache=True, inline="always")
+def _row_start(py, cmin, cmax, xa0, ya0, dx0, dy0, tl0, s0, xa1, ya1, dx1, dy1, tl1, s1,
+               xa2, ya2, dx2, dy2, tl2, s2):
+    """The column where :func:`scan_row` starts row ``py``: every centre left of it is
+    outside the triangle. ``s_i`` is edge i's dx/dy where its function grows along the
+    row (dy < 0), else NaN."""
+    best, edge = -np.inf, -1
+    for i, s, xa, ya in ((0, s0, xa0, ya0), (1, s1, xa1, ya1), (2, s2, xa2, ya2)):
+        if s == s:  # not NaN
+            x = xa + s * (py - ya)  # where the edge crosses the row
+            if x > best:
+                best, edge = x, i
+    if edge < 0:
+        return cmin
+    g = int(min(np.ceil(best - 0.5), cmax + 2.0)) - 1  # at most cmax + 1: an empty row
+    if g <= cmin:
+        return cmin
+    px = g - 0.5  # the centre of column g - 1
+    if edge == 0:
+        out = _fails(px, py, xa0, ya0, dx0, dy0, tl0)
+    elif edge == 1:
+        out = _fails(px, py, xa1, ya1, dx1, dy1, tl1)
+    else:
+        out = _fails(px, py, xa2, ya2, dx2, dy2, tl2)
+    return g if out else cmin
+
+
 @njit(cache=True)
 def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
     """Z-buffer row ``k`` of table ``t``, a face with id ``fid``, into the region
@@ -180,10 +219,22 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
     # the products could overflow (inf - inf is NaN, which is not monotone).
     inv_area = 1.0 / area
     bounded = max(abs(x0), abs(x1), abs(x2), abs(y0), abs(y1), abs(y2)) < 1e150
+    # For the same reason the centres left of a row's run fail one of the edges whose
+    # function grows along the row (dy < 0): in a wide box a row starts a column before
+    # the rightmost of their crossings, when that column's centre is checked to fail
+    # its edge (so are all centres left of it), else at the box's left.
+    skip = bounded and cmax - cmin >= WIDE_BOX
+    s0 = dx0 / dy0 if dy0 < 0.0 else np.nan
+    s1 = dx1 / dy1 if dy1 < 0.0 else np.nan
+    s2 = dx2 / dy2 if dy2 < 0.0 else np.nan
     for r in range(rmin, rmax + 1):
         py = r + 0.5
         entered = False
-        for c in range(cmin, cmax + 1):
+        start = cmin
+        if skip:
+            start = _row_start(py, cmin, cmax, x1, y1, dx0, dy0, tl0, s0, x2, y2, dx1, dy1,
+                               tl1, s1, x0, y0, dx2, dy2, tl2, s2)
+        for c in range(start, cmax + 1):
             px = c + 0.5
             e0 = dx0 * (py - y1) - dy0 * (px - x1)
             if e0 < 0.0 or (e0 == 0.0 and not tl0):
