@@ -221,8 +221,9 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
     bounded = max(abs(x0), abs(x1), abs(x2), abs(y0), abs(y1), abs(y2)) < 1e150
     # For the same reason the centres left of a row's run fail one of the edges whose
     # function grows along the row (dy < 0): in a wide box a row starts a column before
-    # the rightmost of their crossings, when that column's centre is checked to fail
-    # its edge (so are all centres left of it), else at the box's left.
+    # the first centre right of the rightmost of their crossings, when the centre left
+    # of that start is checked to fail its edge (then so do all centres left of it),
+    # else at the box's left.
     skip = bounded and cmax - cmin >= WIDE_BOX
     s0 = dx0 / dy0 if dy0 < 0.0 else np.nan
     s1 = dx1 / dy1 if dy1 < 0.0 else np.nan
