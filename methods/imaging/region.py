@@ -106,12 +106,12 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     stats, ent = img.stats, img.ent
     start = cycles()
     # Holes: the pixels whose face changes; the others keep their face and depth.
-    hc0, hc1, hr0, hr1, htick, far = _open_holes(h, rect, img, iws, atick)
+    hc0, hc1, hr0, hr1, far = _open_holes(h, rect, img, iws, atick)
     # The changed faces, over the whole rectangle.
     n = _scan_changed(h, rect, na, u, v, sp, F, img, iws, far)
     if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
-        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, atick, na, n, sp, F, falive,
-                        img, tiles, iws)
+        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, atick, na, n, sp, F, falive, img,
+                        tiles, iws)
     mid = cycles()
     if ent.on:  # viewpoint entropy: the count changes inside the rectangle
         dh = _entropy_change(h, rect, iws.ids, img.IDS, ent, commit)
@@ -144,15 +144,10 @@ def _is_hole(w, gmark, atick):
 def _open_holes(h, rect, img, iws, atick):
     """Start ``iws.depth``/``iws.ids`` (rectangle-relative) from view ``h``'s current
     depth and faces, with the pixels of changed faces (``gmark == atick``) emptied;
-    returns the holes' bounding box (c0, c1, r0, r1), empty when c0 > c1, the
-    stamp of the tiles holding a hole (``iws.hmark``) and the rectangle's farthest
-    depth (infinite with a hole or an empty pixel)."""
-    IDS, DZ, gmark, depth, ids, hmark = (img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids,
-                                         iws.hmark)
+    returns the holes' bounding box (c0, c1, r0, r1), empty when c0 > c1, and the
+    rectangle's farthest depth (infinite with a hole or an empty pixel)."""
+    IDS, DZ, gmark, depth, ids = img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids
     height, width = img.Y.shape[1], img.Y.shape[2]
-    nx = -(-width // TILE)
-    iws.tick[0] += 1
-    htick = iws.tick[0]
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     hc0, hc1, hr0, hr1 = width, -1, height, -1
     far = -np.inf
@@ -164,14 +159,13 @@ def _open_holes(h, rect, img, iws, atick):
                 ids[r - r0, c - c0] = -1
                 hc0, hc1 = min(hc0, c), max(hc1, c)
                 hr0, hr1 = min(hr0, r), max(hr1, r)
-                hmark[(r // TILE) * nx + c // TILE] = htick
                 far = np.inf
             else:
                 z = DZ[h, r, c]
                 depth[r - r0, c - c0] = z
                 ids[r - r0, c - c0] = w
                 far = max(far, z)
-    return hc0, hc1, hr0, hr1, htick, far
+    return hc0, hc1, hr0, hr1, far
 
 
 @njit(cache=True)
@@ -196,39 +190,58 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
 
 
 @njit(cache=True)
-def _fill_holes(h, rect, hc0, hc1, hr0, hr1, htick, atick, na, n, sp, F, falive, img,
-                tiles, iws):
-    """Scan every other face whose box meets the holes' box in a tile holding a hole
-    (``iws.hmark == htick``; from the tile index) over that box, as table rows n..;
-    returns the new row count. A face that reaches no hole changes no pixel: every kept
-    pixel shows the nearest of the faces before the collapse, so no unchanged face can
-    beat it. For the same reason a face wholly behind the farthest depth the changed
-    faces left in the holes is not scanned."""
+def _fill_holes(h, rect, hc0, hc1, hr0, hr1, atick, na, n, sp, F, falive, img, tiles,
+                iws):
+    """Scan every other face whose box meets the open holes' box in a tile holding an
+    open hole (stamped in ``iws.hmark``; from the tile index) over that box, as table
+    rows n..; returns the new row count. A hole is open unless the changed faces' scan
+    put a (depth, id) there no larger than that of the face it showed before. A face
+    that reaches no open hole changes no pixel: every kept pixel shows the nearest of
+    the faces before the collapse, and every face at a settled hole was behind the one
+    shown there before, so no unchanged face can beat it. For the same reason a face
+    wholly behind the farthest depth in an open hole is not scanned."""
     mark, tick, cand, rowof, t, aff = iws.mark, iws.tick, iws.cand, iws.rowof, iws.t, iws.aff
+    IDS, DZ, depth, ids, hmark = img.IDS, img.DZ, iws.depth, iws.ids, iws.hmark
     width = img.Y.shape[2]
+    nx = -(-width // TILE)
     r0, c0 = rect[2], rect[0]
     tick[0] += 1
-    for i in range(na):
-        mark[aff[i]] = tick[0]
-    hole = iws.box
-    hole[0], hole[1], hole[2], hole[3] = hc0, hc1, hr0, hr1
-    g0 = cycles()
-    n2 = _gather(tiles, h, hole, img.fbox, falive, mark, tick[0], cand, n, TILE,
-                 -(-width // TILE), iws.hmark, htick)
-    img.stats[STAT_GATHER_CYCLES] += cycles() - g0
-    hole_depth = iws.depth[hr0 - r0:, hc0 - c0:]  # views indexed from the holes' corner
-    hole_ids = iws.ids[hr0 - r0:, hc0 - c0:]
-    far = -np.inf  # the farthest depth in a hole, after the changed faces' scan
+    otick = tick[0]
+    # The holes left open: where the changed faces now show nothing, or something
+    # farther (or of a higher id at the same depth) than the face they showed before.
+    # Every unchanged face at a hole was behind that face, so elsewhere it loses.
+    oc0, oc1, or0, or1 = width, -1, img.Y.shape[1], -1
+    far = -np.inf  # the farthest depth in an open hole, after the changed faces' scan
     for r in range(hr0, hr1 + 1):
         for c in range(hc0, hc1 + 1):
-            if _is_hole(img.IDS[h, r, c], iws.gmark, atick):
-                far = max(far, hole_depth[r - hr0, c - hc0])
+            old = IDS[h, r, c]
+            if not _is_hole(old, iws.gmark, atick):
+                continue
+            z, f = depth[r - r0, c - c0], ids[r - r0, c - c0]
+            if f >= 0 and (z < DZ[h, r, c] or (z == DZ[h, r, c] and f <= old)):
+                continue  # settled: no unchanged face can win here
+            oc0, oc1 = min(oc0, c), max(oc1, c)
+            or0, or1 = min(or0, r), max(or1, r)
+            hmark[(r // TILE) * nx + c // TILE] = otick
+            far = max(far, z)
+    if oc0 > oc1:
+        return n
+    for i in range(na):
+        mark[aff[i]] = otick
+    hole = iws.box
+    hole[0], hole[1], hole[2], hole[3] = oc0, oc1, or0, or1
+    g0 = cycles()
+    n2 = _gather(tiles, h, hole, img.fbox, falive, mark, otick, cand, n, TILE, nx, hmark,
+                 otick)
+    img.stats[STAT_GATHER_CYCLES] += cycles() - g0
+    hole_depth = depth[or0 - r0:, oc0 - c0:]  # views indexed from the open holes' corner
+    hole_ids = ids[or0 - r0:, oc0 - c0:]
     for k in range(n, n2):
         f = cand[k]
         rowof[f] = k
         fill_screen(t, k, f, h, -1, -1, sp, img.S, F)
         if not behind(t, k, far):
-            scan_row(t, k, f, hc0, hc1, hr0, hr1, img.cull[h], hole_depth, hole_ids)
+            scan_row(t, k, f, oc0, oc1, or0, or1, img.cull[h], hole_depth, hole_ids)
     return n2
 
 
