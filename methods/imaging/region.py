@@ -106,12 +106,11 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     stats, ent = img.stats, img.ent
     start = cycles()
     # Holes: the pixels whose face changes; the others keep their face and depth.
-    hc0, hc1, hr0, hr1, far = _open_holes(h, rect, img, iws, atick)
+    nh, far = _open_holes(h, rect, img, iws, atick)
     # The changed faces, over the whole rectangle.
     n = _scan_changed(h, rect, na, u, v, sp, F, img, iws, far)
-    if hc0 <= hc1:  # what the changed faces uncover: every other face over the holes
-        n = _fill_holes(h, rect, hc0, hc1, hr0, hr1, atick, na, n, sp, F, falive, img,
-                        tiles, iws)
+    if nh > 0:  # what the changed faces uncover: every other face over the holes
+        n = _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws)
     mid = cycles()
     if ent.on:  # viewpoint entropy: the count changes inside the rectangle
         dh = _entropy_change(h, rect, iws.ids, img.IDS, ent, commit)
@@ -144,28 +143,28 @@ def _is_hole(w, gmark, atick):
 def _open_holes(h, rect, img, iws, atick):
     """Start ``iws.depth``/``iws.ids`` (rectangle-relative) from view ``h``'s current
     depth and faces, with the pixels of changed faces (``gmark == atick``) emptied;
-    returns the holes' bounding box (c0, c1, r0, r1), empty when c0 > c1, and the
-    rectangle's farthest depth (infinite with a hole or an empty pixel)."""
-    IDS, DZ, gmark, depth, ids = img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids
-    height, width = img.Y.shape[1], img.Y.shape[2]
+    returns the number of holes (listed in ``iws.holes``) and the rectangle's farthest
+    depth (infinite with a hole or an empty pixel)."""
+    IDS, DZ, gmark, depth, ids, holes = (img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids,
+                                         iws.holes)
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
-    hc0, hc1, hr0, hr1 = width, -1, height, -1
     far = -np.inf
+    nh = 0
     for r in range(r0, r1 + 1):
         for c in range(c0, c1 + 1):
             w = IDS[h, r, c]
             if _is_hole(w, gmark, atick):
                 depth[r - r0, c - c0] = np.inf
                 ids[r - r0, c - c0] = -1
-                hc0, hc1 = min(hc0, c), max(hc1, c)
-                hr0, hr1 = min(hr0, r), max(hr1, r)
+                holes[nh, 0], holes[nh, 1] = r, c
+                nh += 1
                 far = np.inf
             else:
                 z = DZ[h, r, c]
                 depth[r - r0, c - c0] = z
                 ids[r - r0, c - c0] = w
                 far = max(far, z)
-    return hc0, hc1, hr0, hr1, far
+    return nh, far
 
 
 @njit(cache=True)
@@ -190,12 +189,12 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
 
 
 @njit(cache=True)
-def _fill_holes(h, rect, hc0, hc1, hr0, hr1, atick, na, n, sp, F, falive, img, tiles,
-                iws):
+def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
     """Scan every other face whose box meets the open holes' box in a tile holding an
     open hole (stamped in ``iws.hmark``; from the tile index) over that box, as table
-    rows n..; returns the new row count. A hole is open unless the changed faces' scan
-    put a (depth, id) there no larger than that of the face it showed before. A face
+    rows n..; returns the new row count. The rectangle's ``nh`` holes are listed in
+    ``iws.holes``; one is open unless the changed faces' scan put a (depth, id) there
+    no larger than that of the face it showed before. A face
     that reaches no open hole changes no pixel: every kept pixel shows the nearest of
     the faces before the collapse, and every face at a settled hole was behind the one
     shown there before, so no unchanged face can beat it. For the same reason a face
@@ -212,18 +211,15 @@ def _fill_holes(h, rect, hc0, hc1, hr0, hr1, atick, na, n, sp, F, falive, img, t
     # Every unchanged face at a hole was behind that face, so elsewhere it loses.
     oc0, oc1, or0, or1 = width, -1, img.Y.shape[1], -1
     far = -np.inf  # the farthest depth in an open hole, after the changed faces' scan
-    for r in range(hr0, hr1 + 1):
-        for c in range(hc0, hc1 + 1):
-            old = IDS[h, r, c]
-            if not _is_hole(old, iws.gmark, atick):
-                continue
-            z, f = depth[r - r0, c - c0], ids[r - r0, c - c0]
-            if f >= 0 and (z < DZ[h, r, c] or (z == DZ[h, r, c] and f <= old)):
-                continue  # settled: no unchanged face can win here
-            oc0, oc1 = min(oc0, c), max(oc1, c)
-            or0, or1 = min(or0, r), max(or1, r)
-            hmark[(r // TILE) * nx + c // TILE] = otick
-            far = max(far, z)
+    for i in range(nh):
+        r, c = iws.holes[i, 0], iws.holes[i, 1]
+        z, f = depth[r - r0, c - c0], ids[r - r0, c - c0]
+        if f >= 0 and (z < DZ[h, r, c] or (z == DZ[h, r, c] and f <= IDS[h, r, c])):
+            continue  # settled: no unchanged face can win here
+        oc0, oc1 = min(oc0, c), max(oc1, c)
+        or0, or1 = min(or0, r), max(or1, r)
+        hmark[(r // TILE) * nx + c // TILE] = otick
+        far = max(far, z)
     if oc0 > oc1:
         return n
     for i in range(na):
