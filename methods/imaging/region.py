@@ -194,11 +194,11 @@ def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
     open hole (stamped in ``iws.hmark``; from the tile index) over that box, as table
     rows n..; returns the new row count. The rectangle's ``nh`` holes are listed in
     ``iws.holes``; one is open unless the changed faces' scan put a (depth, id) there
-    no larger than that of the face it showed before. A face
-    that reaches no open hole changes no pixel: every kept pixel shows the nearest of
-    the faces before the collapse, and every face at a settled hole was behind the one
-    shown there before, so no unchanged face can beat it. For the same reason a face
-    wholly behind the farthest depth in an open hole is not scanned."""
+    no larger than that of the face it showed before. A face that reaches no open hole
+    changes no pixel: every kept pixel shows the nearest of the faces before the
+    collapse, and every face at a settled hole was behind the one shown there before,
+    so no unchanged face can beat it. For the same reason a face wholly behind the
+    farthest depth in an open hole is not scanned."""
     mark, tick, cand, rowof, t, aff = iws.mark, iws.tick, iws.cand, iws.rowof, iws.t, iws.aff
     IDS, DZ, depth, ids, hmark = img.IDS, img.DZ, iws.depth, iws.ids, iws.hmark
     width = img.Y.shape[2]
@@ -208,7 +208,8 @@ def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
     otick = tick[0]
     # The holes left open: where the changed faces now show nothing, or something
     # farther (or of a higher id at the same depth) than the face they showed before.
-    # Every unchanged face at a hole was behind that face, so elsewhere it loses.
+    # Every unchanged face at a hole was behind the face shown there before, so at a
+    # settled hole it loses to the new one too.
     oc0, oc1, or0, or1 = width, -1, img.Y.shape[1], -1
     far = -np.inf  # the farthest depth in an open hole, after the changed faces' scan
     for i in range(nh):
