@@ -155,25 +155,22 @@ def _row_start(py, cmin, cmax, xa0, ya0, dx0, dy0, tl0, s0, xa1, ya1, dx1, dy1, 
     """The column where :func:`scan_row` starts row ``py``: every centre left of it is
     outside the triangle. ``s_i`` is edge i's dx/dy where its function grows along the
     row (dy < 0), else NaN."""
-    best, edge = -np.inf, -1
-    for i, s, xa, ya in ((0, s0, xa0, ya0), (1, s1, xa1, ya1), (2, s2, xa2, ya2)):
+    # the rightmost crossing of the row by such an edge, with that edge
+    best, xa, ya, dx, dy, tl = -np.inf, 0.0, 0.0, 0.0, 0.0, False
+    for s, xe, ye, dxe, dye, tle in ((s0, xa0, ya0, dx0, dy0, tl0),
+                                     (s1, xa1, ya1, dx1, dy1, tl1),
+                                     (s2, xa2, ya2, dx2, dy2, tl2)):
         if s == s:  # not NaN
-            x = xa + s * (py - ya)  # where the edge crosses the row
+            x = xe + s * (py - ye)  # where the edge crosses the row
             if x > best:
-                best, edge = x, i
-    if edge < 0:
+                best, xa, ya, dx, dy, tl = x, xe, ye, dxe, dye, tle
+    if best == -np.inf:  # no such edge
         return cmin
     g = int(min(np.ceil(best - 0.5), cmax + 2.0)) - 1  # at most cmax + 1: an empty row
     if g <= cmin:
         return cmin
-    px = g - 0.5  # the centre of column g - 1
-    if edge == 0:
-        out = _fails(px, py, xa0, ya0, dx0, dy0, tl0)
-    elif edge == 1:
-        out = _fails(px, py, xa1, ya1, dx1, dy1, tl1)
-    else:
-        out = _fails(px, py, xa2, ya2, dx2, dy2, tl2)
-    return g if out else cmin
+    # the centre of column g - 1 must fail that edge
+    return g if _fails(g - 0.5, py, xa, ya, dx, dy, tl) else cmin
 
 
 @njit(cache=True)
