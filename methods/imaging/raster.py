@@ -174,9 +174,10 @@ def _row_start(py, cmin, cmax, xa0, ya0, dx0, dy0, tl0, s0, xa1, ya1, dx1, dy1, 
 
 
 @njit(cache=True)
-def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
+def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=None):
     """Z-buffer row ``k`` of table ``t``, a face with id ``fid``, into the region
-    [r_lo, r_hi] x [c_lo, c_hi].
+    [r_lo, r_hi] x [c_lo, c_hi]; with ``spans`` (rows, 2), only columns
+    ``spans[r, 0]..spans[r, 1]`` of each row ``r`` (none where the first is larger).
 
     ``depth`` and ``ids`` are indexed from (r_lo, c_lo). A pixel goes to the face with
     the smaller (depth, id): equal depths go to the lower id, which is what drawing
@@ -226,13 +227,18 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
     s1 = dx1 / dy1 if dy1 < 0.0 else np.nan
     s2 = dx2 / dy2 if dy2 < 0.0 else np.nan
     for r in range(rmin, rmax + 1):
+        lo, hi = cmin, cmax
+        if spans is not None:
+            lo, hi = max(cmin, spans[r, 0]), min(cmax, spans[r, 1])
+            if lo > hi:
+                continue
         py = r + 0.5
         entered = False
-        start = cmin
+        start = lo
         if skip:
-            start = _row_start(py, cmin, cmax, x1, y1, dx0, dy0, tl0, s0, x2, y2, dx1, dy1,
-                               tl1, s1, x0, y0, dx2, dy2, tl2, s2)
-        for c in range(start, cmax + 1):
+            start = max(lo, _row_start(py, cmin, cmax, x1, y1, dx0, dy0, tl0, s0, x2, y2,
+                                       dx1, dy1, tl1, s1, x0, y0, dx2, dy2, tl2, s2))
+        for c in range(start, hi + 1):
             px = c + 0.5
             e0 = dx0 * (py - y1) - dy0 * (px - x1)
             if e0 < 0.0 or (e0 == 0.0 and not tl0):

@@ -191,11 +191,12 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
 @njit(cache=True)
 def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
     """Scan every other face whose box meets the open holes' box in a tile holding an
-    open hole (stamped in ``iws.hmark``; from the tile index) over that box, as table
-    rows n..; returns the new row count. The rectangle's ``nh`` holes are listed in
+    open hole (stamped in ``iws.hmark``; from the tile index) over that box, each row
+    only from its first open hole to its last (``iws.spans``), as table rows n..;
+    returns the new row count. The rectangle's ``nh`` holes are listed in
     ``iws.holes``; one is open unless the changed faces' scan put a (depth, id) there
-    no larger than that of the face it showed before. A face that reaches no open hole
-    changes no pixel: every kept pixel shows the nearest of the faces before the
+    no larger than that of the face it showed before. An unchanged face wins no pixel
+    but an open hole: every kept pixel shows the nearest of the faces before the
     collapse, and every face at a settled hole was behind the one shown there before,
     so no unchanged face can beat it. For the same reason a face wholly behind the
     farthest depth in an open hole is not scanned."""
@@ -211,6 +212,9 @@ def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
     # Every unchanged face at a hole was behind the face shown there before, so at a
     # settled hole it loses to the new one too.
     oc0, oc1, or0, or1 = width, -1, img.Y.shape[1], -1
+    spans = iws.spans
+    for r in range(r0, rect[3] + 1):
+        spans[r, 0], spans[r, 1] = width, -1
     far = -np.inf  # the farthest depth in an open hole, after the changed faces' scan
     for i in range(nh):
         r, c = iws.holes[i, 0], iws.holes[i, 1]
@@ -219,6 +223,7 @@ def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
             continue  # settled: no unchanged face can win here
         oc0, oc1 = min(oc0, c), max(oc1, c)
         or0, or1 = min(or0, r), max(or1, r)
+        spans[r, 0], spans[r, 1] = min(spans[r, 0], c), max(spans[r, 1], c)
         hmark[(r // TILE) * nx + c // TILE] = otick
         far = max(far, z)
     if oc0 > oc1:
@@ -238,7 +243,7 @@ def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
         rowof[f] = k
         fill_screen(t, k, f, h, -1, -1, sp, img.S, F)
         if not behind(t, k, far):
-            scan_row(t, k, f, oc0, oc1, or0, or1, img.cull[h], hole_depth, hole_ids)
+            scan_row(t, k, f, oc0, oc1, or0, or1, img.cull[h], hole_depth, hole_ids, spans)
     return n2
 
 

@@ -53,11 +53,12 @@ Entropy = namedtuple("Entropy", "counts sums totals dcnt emark touched on backgr
 #: whose normal changes (MAX_RING,), per-view ``rects`` (V, 4), ``buf`` (NORMAL_FACES_CAP,)
 #: faces of a vertex normal, ``n3`` (3,), ``sp`` (4,) a screen position, ``box`` (4,),
 #: the affected faces ``aff`` (AFFECTED_CAP,), marks ``amark``/``gmark``/``rowmark`` and
-#: ``rowof`` (m,), ``hmark`` (tiles of a view,) the tiles holding an open hole, and
-#: ``holes`` (H * W, 2) the (row, column) of each hole of a rectangle.
+#: ``rowof`` (m,), ``hmark`` (tiles of a view,) the tiles holding an open hole,
+#: ``holes`` (H * W, 2) the (row, column) of each hole of a rectangle, and ``spans``
+#: (H, 2) per image row the first and last column of its open holes.
 ImageScratch = namedtuple("ImageScratch", "mark tick cand t depth ids vslot ov_light wslot "
                                           "new_uv ring rects buf n3 sp box aff amark gmark "
-                                          "rowof rowmark hmark holes")
+                                          "rowof rowmark hmark holes spans")
 
 
 def _workspace(n_views, nv, m, n_wedges, height, width):
@@ -73,7 +74,7 @@ def _workspace(n_views, nv, m, n_wedges, height, width):
         np.empty(AFFECTED_CAP, np.int64), np.zeros(m, np.int64), np.zeros(m, np.int64),
         np.zeros(m, np.int64), np.zeros(m, np.int64),
         np.zeros(-(-height // TILE) * -(-width // TILE), np.int64),
-        np.zeros((height * width, 2), np.int64))
+        np.zeros((height * width, 2), np.int64), np.zeros((height, 2), np.int64))
 
 
 def entropy_state(n_views, m, on=False, background=True, shade=True):
