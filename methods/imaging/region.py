@@ -148,22 +148,29 @@ def _open_holes(h, rect, img, iws, atick):
     IDS, DZ, gmark, depth, ids, holes = (img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids,
                                          iws.holes)
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
-    far = -np.inf
+    n = c1 - c0 + 1
     nh = 0
     for r in range(r0, r1 + 1):
-        for c in range(c0, c1 + 1):
-            w = IDS[h, r, c]
+        # rows of views indexed from 0, so that the depth copy is a plain vector copy
+        zsrc, zdst = DZ[h, r, c0:c1 + 1], depth[r - r0]
+        isrc, idst = IDS[h, r, c0:c1 + 1], ids[r - r0]
+        for j in range(n):
+            zdst[j] = zsrc[j]
+        for j in range(n):
+            w = isrc[j]
             if _is_hole(w, gmark, atick):
-                depth[r - r0, c - c0] = np.inf
-                ids[r - r0, c - c0] = -1
-                holes[nh, 0], holes[nh, 1] = r, c
+                zdst[j] = np.inf
+                w = -1
+                holes[nh, 0], holes[nh, 1] = r, c0 + j
                 nh += 1
-                far = np.inf
-            else:
-                z = DZ[h, r, c]
-                depth[r - r0, c - c0] = z
-                ids[r - r0, c - c0] = w
-                far = max(far, z)
+            idst[j] = w
+    if nh > 0:
+        return nh, np.inf
+    far = -np.inf
+    for i in range(r1 - r0 + 1):
+        zrow = depth[i]
+        for j in range(n):
+            far = max(far, zrow[j])
     return nh, far
 
 

@@ -32,7 +32,7 @@ from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, SHADINGS
 #: int32, vertex normals ``vn`` (nv, 3), vertex lighting ``L`` (V, nv, 4), ``shading``
 #: (:data:`methods.imaging.raster.Shading`), ``texture`` (h, w, 3) uint8, ``stats``
 #: counters (indexed by methods.imaging.counters.STAT_*), the face seen at each pixel
-#: ``IDS`` (V, H, W) int64 (-1 empty), its depth ``DZ`` (V, H, W), ``ent``
+#: ``IDS`` (V, H, W) int32 (-1 empty), its depth ``DZ`` (V, H, W), ``ent``
 #: (:data:`Entropy`).
 ImageState = namedtuple("ImageState", "M eyes cull Y0 Y S fbox vn L shading texture stats "
                                       "IDS DZ ent")
@@ -47,7 +47,7 @@ Entropy = namedtuple("Entropy", "counts sums totals dcnt emark touched on backgr
 
 #: Scratch of the region re-renders: face marks ``mark`` (m,) with ``tick`` (1,), the
 #: candidate faces ``cand`` (m,) and their table rows ``t`` (m, ROW), a rectangle's
-#: ``depth`` and ``ids`` (H, W), ``vslot`` (nv,) slot of a vertex whose lighting changes
+#: ``depth`` and ``ids`` (H, W; int32), ``vslot`` (nv,) slot of a vertex whose lighting changes
 #: and its new lighting ``ov_light`` (V, MAX_RING, 4), ``wslot`` (n_wedges,) slot of a
 #: wedge whose UV changes and its ``new_uv`` (NEW_UV_CAP, 2), the ``ring`` of vertices
 #: whose normal changes (MAX_RING,), per-view ``rects`` (V, 4), ``buf`` (NORMAL_FACES_CAP,)
@@ -66,7 +66,7 @@ def _workspace(n_views, nv, m, n_wedges, height, width):
     m = max(m, 1)
     return ImageScratch(
         np.zeros(m, np.int64), np.zeros(1, np.int64), np.empty(m, np.int64),
-        np.empty((m, ROW)), np.empty((height, width)), np.empty((height, width), np.int64),
+        np.empty((m, ROW)), np.empty((height, width)), np.empty((height, width), np.int32),
         np.full(nv, -1, np.int64), np.zeros((n_views, _MAX_RING, 4)),
         np.full(n_wedges, -1, np.int64), np.zeros((NEW_UV_CAP, 2)),
         np.empty(_MAX_RING, np.int64), np.empty((n_views, 4), np.int64),
@@ -95,7 +95,7 @@ def dummy_state():
                      np.zeros((1, 1, 4), np.int32), np.zeros((1, 3)), np.zeros((1, 1, 4)),
                      Shading(0.0, 0.0, 0.0, 0.0, 0.0, False, False, False),
                      np.zeros((1, 1, 3), np.uint8), np.zeros(len(STAT_NAMES), np.int64),
-                     np.zeros((1, 1, 1), np.int64), np.zeros((1, 1, 1)), entropy_state(1, 1))
+                     np.zeros((1, 1, 1), np.int32), np.zeros((1, 1, 1)), entropy_state(1, 1))
     tiles = Tiles(np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64),
                   np.zeros(1, np.int32), np.zeros((1, 1, 4), np.int32))
     return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
@@ -130,7 +130,7 @@ def new_state(M, eyes, cull, Y0, shading, texture, nv, m, n_wedges, entropy=None
         np.full(Y0.shape, 128.0), np.zeros((n_views, nv, 4)),
         np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)), np.zeros((n_views, nv, 4)),
         shading, np.ascontiguousarray(texture, np.uint8),
-        np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int64),
+        np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int32),
         np.full(Y0.shape, np.inf),
         entropy_state(n_views, m) if entropy is None else
         entropy_state(n_views, m, True, entropy[0], entropy[1]))
