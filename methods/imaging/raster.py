@@ -137,6 +137,9 @@ T_UV = 36  # corner texture coordinates, 3 x 2
 ROW = 42
 
 
+#: The smallest positive double (a subnormal): ``e < TINY`` is ``e <= 0`` for any e.
+TINY = 5e-324
+
 #: Boxes at least this many columns wide start each row near the triangle's left edge
 #: (:func:`_row_start`); narrower ones at the box's left.
 WIDE_BOX = 8
@@ -211,6 +214,12 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
     tl0 = dy0 < 0.0 or (dy0 == 0.0 and dx0 > 0.0)
     tl1 = dy1 < 0.0 or (dy1 == 0.0 and dx1 > 0.0)
     tl2 = dy2 < 0.0 or (dy2 == 0.0 and dx2 > 0.0)
+    # A centre fails edge i where e_i < 0, or e_i == 0 off a top-left edge: e_i < q_i,
+    # one comparison (no double lies between 0 and the smallest subnormal; NaN passes,
+    # as before).
+    q0 = 0.0 if tl0 else TINY
+    q1 = 0.0 if tl1 else TINY
+    q2 = 0.0 if tl2 else TINY
     # Along a row each edge function is monotone in the column (every operation of it is
     # a correctly rounded monotone function of px), so the centres inside all three
     # edges form one run: the row ends where it is left. Not for values so large that
@@ -238,20 +247,21 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
         if skip:
             start = max(lo, _row_start(py, cmin, cmax, x1, y1, dx0, dy0, tl0, s0, x2, y2,
                                        dx1, dy1, tl1, s1, x0, y0, dx2, dy2, tl2, s2))
+        px = start - 0.5  # the centre's column, stepped exactly (k + 0.5 for integer k)
         for c in range(start, hi + 1):
-            px = c + 0.5
+            px += 1.0
             e0 = dx0 * (py - y1) - dy0 * (px - x1)
-            if e0 < 0.0 or (e0 == 0.0 and not tl0):
+            if e0 < q0:
                 if entered and bounded:
                     break
                 continue
             e1 = dx1 * (py - y2) - dy1 * (px - x2)
-            if e1 < 0.0 or (e1 == 0.0 and not tl1):
+            if e1 < q1:
                 if entered and bounded:
                     break
                 continue
             e2 = dx2 * (py - y0) - dy2 * (px - x0)
-            if e2 < 0.0 or (e2 == 0.0 and not tl2):
+            if e2 < q2:
                 if entered and bounded:
                     break
                 continue
