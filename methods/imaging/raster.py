@@ -311,7 +311,7 @@ def behind(t, k, far):
     return lower > far
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def shade_pixel(t, k, px, py, eye, shading, texture):
     """Luminance (0..255) of table row ``k`` at pixel centre (px, py) under ``shading``
     (:data:`Shading`)."""
