@@ -282,11 +282,14 @@ def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, 
     filled = tick[0]  # rows whose shading columns are filled are marked with it
     cost = 0.0
     shaded = 0
+    width = c1 - c0 + 1
     for r in range(r0, r1 + 1):
-        for c in range(c0, c1 + 1):
-            f = ids[r - r0, c - c0]
-            if f == IDS[h, r, c] and (f < 0 or amark[f] != atick):
+        before, after = IDS[h, r, c0:c1 + 1], ids[r - r0]  # rows indexed from 0
+        for j in range(width):
+            f = after[j]
+            if f == before[j] and (f < 0 or amark[f] != atick):
                 continue  # the same face, unchanged: the same luminance
+            c = c0 + j
             y = background
             if f >= 0:
                 k = rowof[f]
