@@ -146,34 +146,34 @@ WIDE_BOX = 8
 
 
 @njit(cache=True, inline="always")
-def _fails(px, py, xa, ya, dx, dy, tl):
-    """Whether the centre (px, py) is outside the edge from (xa, ya) along (dx, dy)."""
-    e = dx * (py - ya) - dy * (px - xa)
-    return e < 0.0 or (e == 0.0 and not tl)
+def _fails(px, py, xa, ya, dx, dy, q):
+    """Whether the centre (px, py) is outside the edge from (xa, ya) along (dx, dy),
+    whose threshold is ``q`` (:func:`scan_row`: 0 on a top-left edge, else TINY)."""
+    return dx * (py - ya) - dy * (px - xa) < q
 
 
 @njit(cache=True, inline="always")
-def _row_start(py, cmin, cmax, xa0, ya0, dx0, dy0, tl0, s0, xa1, ya1, dx1, dy1, tl1, s1,
-               xa2, ya2, dx2, dy2, tl2, s2):
+def _row_start(py, cmin, cmax, xa0, ya0, dx0, dy0, q0, s0, xa1, ya1, dx1, dy1, q1, s1,
+               xa2, ya2, dx2, dy2, q2, s2):
     """The column where :func:`scan_row` starts row ``py``: every centre left of it is
     outside the triangle. ``s_i`` is edge i's dx/dy where its function grows along the
     row (dy < 0), else NaN."""
     # the rightmost crossing of the row by such an edge, with that edge
-    best, xa, ya, dx, dy, tl = -np.inf, 0.0, 0.0, 0.0, 0.0, False
-    for s, xe, ye, dxe, dye, tle in ((s0, xa0, ya0, dx0, dy0, tl0),
-                                     (s1, xa1, ya1, dx1, dy1, tl1),
-                                     (s2, xa2, ya2, dx2, dy2, tl2)):
+    best, xa, ya, dx, dy, q = -np.inf, 0.0, 0.0, 0.0, 0.0, 0.0
+    for s, xe, ye, dxe, dye, qe in ((s0, xa0, ya0, dx0, dy0, q0),
+                                    (s1, xa1, ya1, dx1, dy1, q1),
+                                    (s2, xa2, ya2, dx2, dy2, q2)):
         if s == s:  # not NaN
             x = xe + s * (py - ye)  # where the edge crosses the row
             if x > best:
-                best, xa, ya, dx, dy, tl = x, xe, ye, dxe, dye, tle
+                best, xa, ya, dx, dy, q = x, xe, ye, dxe, dye, qe
     if best == -np.inf:  # no such edge
         return cmin
     g = int(min(np.ceil(best - 0.5), cmax + 2.0)) - 1  # at most cmax + 1: an empty row
     if g <= cmin:
         return cmin
     # the centre of column g - 1 must fail that edge
-    return g if _fails(g - 0.5, py, xa, ya, dx, dy, tl) else cmin
+    return g if _fails(g - 0.5, py, xa, ya, dx, dy, q) else cmin
 
 
 @njit(cache=True)
@@ -245,8 +245,8 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
         entered = False
         start = lo
         if skip:
-            start = max(lo, _row_start(py, cmin, cmax, x1, y1, dx0, dy0, tl0, s0, x2, y2,
-                                       dx1, dy1, tl1, s1, x0, y0, dx2, dy2, tl2, s2))
+            start = max(lo, _row_start(py, cmin, cmax, x1, y1, dx0, dy0, q0, s0, x2, y2,
+                                       dx1, dy1, q1, s1, x0, y0, dx2, dy2, q2, s2))
         px = start - 0.5  # the centre's column, stepped exactly (k + 0.5 for integer k)
         for c in range(start, hi + 1):
             px += 1.0
