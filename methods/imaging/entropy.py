@@ -54,10 +54,10 @@ def _entropy_change(h, rect, ids, IDS, ent, commit):
     etick[0] += 1
     tk = etick[0]
     n = 0
-    width = c1 - c0 + 1
+    cols = c1 - c0 + 1
     for r in range(r0, r1 + 1):
         before, after = IDS[h, r, c0:c1 + 1], ids[r - r0]  # rows indexed from 0
-        for j in range(width):
+        for j in range(cols):
             old = before[j] + 1
             new = after[j] + 1
             if old == new:

@@ -148,15 +148,15 @@ def _open_holes(h, rect, img, iws, atick):
     IDS, DZ, gmark, depth, ids, holes = (img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids,
                                          iws.holes)
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
-    n = c1 - c0 + 1
+    cols = c1 - c0 + 1
     nh = 0
     for r in range(r0, r1 + 1):
         # rows of views indexed from 0, so that the depth copy is a plain vector copy
         zsrc, zdst = DZ[h, r, c0:c1 + 1], depth[r - r0]
         isrc, idst = IDS[h, r, c0:c1 + 1], ids[r - r0]
-        for j in range(n):
+        for j in range(cols):
             zdst[j] = zsrc[j]
-        for j in range(n):
+        for j in range(cols):
             w = isrc[j]
             if _is_hole(w, gmark, atick):
                 zdst[j] = np.inf
@@ -169,7 +169,7 @@ def _open_holes(h, rect, img, iws, atick):
     far = -np.inf
     for i in range(r1 - r0 + 1):
         zrow = depth[i]
-        for j in range(n):
+        for j in range(cols):
             far = max(far, zrow[j])
     return nh, far
 
@@ -282,10 +282,10 @@ def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, 
     filled = tick[0]  # rows whose shading columns are filled are marked with it
     cost = 0.0
     shaded = 0
-    width = c1 - c0 + 1
+    cols = c1 - c0 + 1
     for r in range(r0, r1 + 1):
         before, after = IDS[h, r, c0:c1 + 1], ids[r - r0]  # rows indexed from 0
-        for j in range(width):
+        for j in range(cols):
             f = after[j]
             if f == before[j] and (f < 0 or amark[f] != atick):
                 continue  # the same face, unchanged: the same luminance
