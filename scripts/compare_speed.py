@@ -1,12 +1,13 @@
 """Method time of one job in two checkouts, alternating fresh processes:
 
     .venv/bin/python scripts/compare_speed.py DIR_A DIR_B ROUNDS [FACES] [METHOD]
-                                              [--model NAME]
+                                              [--model NAME] [--threads N]
 
 Each round runs, in a fresh process per checkout (its code first on the import path,
 numba's caches warm from a first run), METHOD (default image-driven) once on a
 200-face icosphere as a warm-up and then on the model (``--model``, any name or path
-``bench run`` takes; default the bunny) to FACES faces (default 1,332), and prints the
+``bench run`` takes; default the bunny) to FACES faces (default 1,332) on N threads (``--threads``; default
+numba's, all cores), and prints the
 method's ``wall_seconds`` and ``cpu_seconds`` (all threads; on a shared machine the
 processor time varies far less than the wall time); at the end the medians and B/A of
 both. A and B take turns, so drift of a shared machine hits both alike. Run nothing else
@@ -47,6 +48,11 @@ def main() -> None:
         i = args.index("--model")
         model = args[i + 1]
         del args[i:i + 2]
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(Path.home())}
+    if "--threads" in args:
+        i = args.index("--threads")
+        env["NUMBA_NUM_THREADS"] = str(int(args[i + 1]))
+        del args[i:i + 2]
     a, b, rounds = args[0], args[1], int(args[2])
     faces = int(args[3]) if len(args) > 3 else 1332
     module, cls = CLASSES[args[4] if len(args) > 4 else "image-driven"]
@@ -57,8 +63,7 @@ def main() -> None:
         for tree in (a, b):
             out = subprocess.run([sys.executable, "-c", code, tree, tests], cwd=tree,
                                  capture_output=True, text=True,
-                                 env={"PYTHONPATH": tree, "PATH": "/usr/bin:/bin",
-                                      "HOME": str(Path.home())})
+                                 env={**env, "PYTHONPATH": tree})
             if out.returncode:
                 sys.exit(out.stderr[-2000:])
             wall, cpu = out.stdout.split()[-2:]
