@@ -32,9 +32,14 @@ from methods.engine.state import Images, new_scratch
 from methods.engine.topology import _candidate_edges, _edge_faces, _faces_area
 from methods.imaging.counters import STAT_RUN_CYCLES, cycles
 
-#: Edges per chunk: small enough that two threads finish together (rendered costs vary
-#: from edge to edge), large enough that taking a chunk costs nothing next to it.
+#: Edges per chunk at most: small enough that two threads finish together (rendered
+#: costs vary from edge to edge), large enough that taking a chunk costs nothing next to
+#: it. A smaller mesh is cut into at least :data:`CHUNKS_PER_THREAD` chunks per thread,
+#: of at least :data:`MIN_CHUNK` edges: five chunks of 256 edges on two threads leave one
+#: thread alone with the last.
 CHUNK = 256
+CHUNKS_PER_THREAD = 8
+MIN_CHUNK = 16
 
 
 @njit(cache=True, nogil=True)
@@ -93,7 +98,8 @@ def first_costs(mesh, rules, terms, scratch, images, threads: int | None = None)
     costs, keeps, places = np.empty(n), np.empty(n, np.int64), np.empty((n, 3))
     out = (costs, keeps, places)
     threads = numba.get_num_threads() if threads is None else int(threads)
-    chunks = [(lo, min(lo + CHUNK, n)) for lo in range(0, n, CHUNK)]
+    size = min(CHUNK, max(MIN_CHUNK, -(-n // (CHUNKS_PER_THREAD * max(1, threads)))))
+    chunks = [(lo, min(lo + size, n)) for lo in range(0, n, size)]
     threads = max(1, min(threads, len(chunks)))
     if threads == 1:
         _cost_range(0, n, edges, mesh, rules, terms, scratch, images, *out)
