@@ -106,7 +106,7 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     stats, ent = img.stats, img.ent
     start = cycles()
     # Holes: the pixels whose face changes; the others keep their face and depth.
-    nh, far = _open_holes(h, rect, img, iws, atick, _hole_box(h, rect, na, img, iws, commit))
+    nh, far = _open_holes(h, rect, img, iws, atick)
     # The changed faces, over the whole rectangle.
     n = _scan_changed(h, rect, na, u, v, sp, F, img, iws, far)
     if nh > 0:  # what the changed faces uncover: every other face over the holes
@@ -140,63 +140,30 @@ def _is_hole(w, gmark, atick):
 
 
 @njit(cache=True)
-def _hole_box(h, rect, na, img, iws, commit):
-    """How many pixels of view ``h`` show a changed face, and the box within ``rect``
-    that holds them, from the entropy's pixel counts and the faces' boxes: in
-    ``iws.box`` (empty when there are none); -1 (the whole rectangle) without counts or
-    with ``commit`` (faces the collapse removed are holes too, and not in ``aff``)."""
-    box = iws.box
-    box[0], box[1], box[2], box[3] = rect[0], rect[1], rect[2], rect[3]
-    counts = img.ent.counts
-    if not img.ent.on or commit:
-        return -1
-    aff, fbox = iws.aff, img.fbox
-    expected = 0
-    box[0], box[1], box[2], box[3] = rect[1] + 1, rect[0] - 1, rect[3] + 1, rect[2] - 1
-    for i in range(na):
-        f = aff[i]
-        k = counts[h, f + 1]
-        if k > 0:
-            expected += k
-            b = fbox[h, f]
-            box[0], box[1] = min(box[0], b[0]), max(box[1], b[1])
-            box[2], box[3] = min(box[2], b[2]), max(box[3], b[3])
-    box[0], box[1] = max(box[0], rect[0]), min(box[1], rect[1])
-    box[2], box[3] = max(box[2], rect[2]), min(box[3], rect[3])
-    return expected
-
-
-@njit(cache=True)
-def _open_holes(h, rect, img, iws, atick, expected):
+def _open_holes(h, rect, img, iws, atick):
     """Start ``iws.depth``/``iws.ids`` (rectangle-relative) from view ``h``'s current
     depth and faces, with the pixels of changed faces (``gmark == atick``) emptied;
     returns the number of holes (listed in ``iws.holes``) and the rectangle's farthest
-    depth (infinite with a hole or an empty pixel). The holes are looked for in
-    ``iws.box`` (:func:`_hole_box`), until the ``expected`` ones are found (-1: all of
-    the box)."""
-    IDS, DZ, gmark, depth, ids, holes, box = (img.IDS, img.DZ, iws.gmark, iws.depth,
-                                              iws.ids, iws.holes, iws.box)
+    depth (infinite with a hole or an empty pixel)."""
+    IDS, DZ, gmark, depth, ids, holes = (img.IDS, img.DZ, iws.gmark, iws.depth, iws.ids,
+                                         iws.holes)
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     cols = c1 - c0 + 1
+    nh = 0
     for r in range(r0, r1 + 1):
-        # rows of views indexed from 0, so that the copies are plain vector copies
+        # rows of views indexed from 0, so that the depth copy is a plain vector copy
         zsrc, zdst = DZ[h, r, c0:c1 + 1], depth[r - r0]
         isrc, idst = IDS[h, r, c0:c1 + 1], ids[r - r0]
         for j in range(cols):
             zdst[j] = zsrc[j]
         for j in range(cols):
-            idst[j] = isrc[j]
-    nh = 0
-    for r in range(box[2], box[3] + 1):
-        if nh == expected:
-            break
-        zdst, idst = depth[r - r0], ids[r - r0]
-        for j in range(box[0] - c0, box[1] - c0 + 1):
-            if _is_hole(idst[j], gmark, atick):
+            w = isrc[j]
+            if _is_hole(w, gmark, atick):
                 zdst[j] = np.inf
-                idst[j] = -1
+                w = -1
                 holes[nh, 0], holes[nh, 1] = r, c0 + j
                 nh += 1
+            idst[j] = w
     if nh > 0:
         return nh, np.inf
     far = -np.inf
