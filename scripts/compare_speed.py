@@ -6,9 +6,9 @@
 Each round runs, in a fresh process per checkout (its code first on the import path,
 numba's caches warm from a first run), METHOD (default image-driven) once on a
 200-face icosphere as a warm-up and then on the model (``--model``, any name or path
-``bench run`` takes; default the bunny) to FACES faces (default 1,332) on N threads (``--threads``; default
-numba's, all cores), and prints the
-method's ``wall_seconds`` and ``cpu_seconds`` (all threads; on a shared machine the
+``bench run`` takes; default the bunny) to FACES faces (default 1,332) on N threads
+(``--threads``; default numba's, all cores), and prints the method's
+``wall_seconds`` and ``cpu_seconds`` (all threads; on a shared machine the
 processor time varies far less than the wall time); at the end the medians and B/A of
 both. A and B take turns, so drift of a shared machine hits both alike. Run nothing else
 meanwhile. González et al. 2008's Table 1 rows, for instance::
@@ -41,18 +41,23 @@ print(stats["wall_seconds"], stats["cpu_seconds"])
 """
 
 
+def _option(args: list, name: str, default):
+    """The value after ``name`` in ``args`` (both removed), else ``default``."""
+    if name not in args:
+        return default
+    i = args.index(name)
+    value = args[i + 1]
+    del args[i:i + 2]
+    return value
+
+
 def main() -> None:
     args = sys.argv[1:]
-    model = "bunny"
-    if "--model" in args:
-        i = args.index("--model")
-        model = args[i + 1]
-        del args[i:i + 2]
+    model = _option(args, "--model", "bunny")
     env = {"PATH": "/usr/bin:/bin", "HOME": str(Path.home())}
-    if "--threads" in args:
-        i = args.index("--threads")
-        env["NUMBA_NUM_THREADS"] = str(int(args[i + 1]))
-        del args[i:i + 2]
+    threads = _option(args, "--threads", None)
+    if threads is not None:
+        env["NUMBA_NUM_THREADS"] = str(int(threads))
     a, b, rounds = args[0], args[1], int(args[2])
     faces = int(args[3]) if len(args) > 3 else 1332
     module, cls = CLASSES[args[4] if len(args) > 4 else "image-driven"]
@@ -62,7 +67,7 @@ def main() -> None:
     for _ in range(rounds):
         for tree in (a, b):
             out = subprocess.run([sys.executable, "-c", code, tree, tests], cwd=tree,
-                                 capture_output=True, text=True,
+                                 capture_output=True, text=True, check=False,
                                  env={**env, "PYTHONPATH": tree})
             if out.returncode:
                 sys.exit(out.stderr[-2000:])
