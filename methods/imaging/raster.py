@@ -146,9 +146,17 @@ WIDE_BOX = 8
 
 
 @njit(cache=True, inline="always")
+def _threshold(dx, dy):
+    """The threshold ``q`` of the edge along (dx, dy): a centre fails it where its edge
+    function e < q. That is e < 0, or e == 0 off a top-left edge (dy < 0, or dy == 0
+    and dx > 0), in one comparison: no double lies between 0 and TINY, and NaN passes."""
+    return 0.0 if dy < 0.0 or (dy == 0.0 and dx > 0.0) else TINY
+
+
+@njit(cache=True, inline="always")
 def _fails(px, py, xa, ya, dx, dy, q):
     """Whether the centre (px, py) is outside the edge from (xa, ya) along (dx, dy),
-    whose threshold is ``q`` (:func:`scan_row`: 0 on a top-left edge, else TINY)."""
+    whose threshold is ``q`` (:func:`_threshold`)."""
     return dx * (py - ya) - dy * (px - xa) < q
 
 
@@ -207,19 +215,11 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
     rmax = int(max(min(np.floor(max(y0, y1, y2) - 0.5), float(r_hi)), r_lo - 1.0))
     if cmin > cmax or rmin > rmax:
         return 0
-    # Edge i is opposite vertex i; top-left: dy < 0, or dy == 0 and dx > 0.
+    # Edge i is opposite vertex i; a centre fails it where e_i < q_i.
     dx0, dy0 = x2 - x1, y2 - y1
     dx1, dy1 = x0 - x2, y0 - y2
     dx2, dy2 = x1 - x0, y1 - y0
-    tl0 = dy0 < 0.0 or (dy0 == 0.0 and dx0 > 0.0)
-    tl1 = dy1 < 0.0 or (dy1 == 0.0 and dx1 > 0.0)
-    tl2 = dy2 < 0.0 or (dy2 == 0.0 and dx2 > 0.0)
-    # A centre fails edge i where e_i < 0, or e_i == 0 off a top-left edge: e_i < q_i,
-    # one comparison (no double lies between 0 and the smallest subnormal; NaN passes,
-    # as before).
-    q0 = 0.0 if tl0 else TINY
-    q1 = 0.0 if tl1 else TINY
-    q2 = 0.0 if tl2 else TINY
+    q0, q1, q2 = _threshold(dx0, dy0), _threshold(dx1, dy1), _threshold(dx2, dy2)
     # Along a row each edge function is monotone in the column (every operation of it is
     # a correctly rounded monotone function of px), so the centres inside all three
     # edges form one run: the row ends where it is left. Not for values so large that
