@@ -6,29 +6,24 @@ and re-costs each stale one on the way. Between two collapses nothing changes th
 or the images, so an edge's cost is the same whenever it is evaluated in that interval.
 When :func:`recost` meets a stale entry it holds no cost for, :func:`_peek` looks at
 the heap's front for the next entries the loop would re-cost (alive, stale, not
-superseded; it stops at the first current one, which the loop takes next), up to
-:data:`ROWS_PER_THREAD` per thread, and wakes the helper threads. The loop costs the
-first itself, then, like each helper, takes the next row no one has taken (a
-compare-and-swap, :func:`_claim`), so that no thread waits for the slowest of a fixed
-share. The loop then goes on exactly as before, but an edge whose cost was computed
-ahead is not evaluated again; a collapse drops whatever was not used (:func:`forget`).
-So every pop, push and collapse is the serial run's, bit for bit, whatever the number
-of threads; only the work counters (face rows, pixels shaded, cycles) include the
-evaluations that were not used.
+superseded; it stops at the first current one, which the loop takes next), hands one
+to each helper thread and costs the first itself. The loop then goes on exactly as
+before, but an edge whose cost was computed ahead is not evaluated again; a collapse
+drops whatever was not used (:func:`forget`). So every pop, push and collapse is the
+serial run's, bit for bit, whatever the number of threads; only the work counters (face
+rows, pixels shaded, cycles) include the evaluations that were not used.
 
 The helpers (:func:`costs_ahead` starts ``threads - 1`` of them for a run) are Python
 threads that stay inside the cached ``nogil`` function :func:`_serve` for the whole
 loop, each with its own copy of what an evaluation writes
 (:func:`methods.engine.initial._worker_state`). The loop and the helpers meet through
 an array of generation numbers read and written with acquire and release atomics
-(:func:`_load_acquire`, :func:`_store_release`, :func:`_claim`): a row is free in
-generation g while it holds -g, so a helper still in an older batch can take none of
-a newer one's rows. Handing out a batch costs no Python call, no lock and no parallel
-(parfor) kernel: a cached loop calling a parallel kernel is the case numba's cache
-cannot reload (docs/maintainers.md, "Parallel kernels and numba's cache"). A waiting
-side spins and yields its core (``sched_yield``). The only structure the loop
-rebuilds, the tile index, reaches the helpers through Python (:func:`share_tiles`):
-each returns from :func:`_serve` and comes back with it.
+(:func:`_load_acquire`, :func:`_store_release`), so handing out a batch costs no
+Python call, no lock and no parallel (parfor) kernel: a cached loop calling a parallel
+kernel is the case numba's cache cannot reload (docs/maintainers.md, "Parallel kernels
+and numba's cache"). A waiting side spins and yields its core (``sched_yield``). The
+only structure the loop rebuilds, the tile index, reaches the helpers through Python
+(:func:`share_tiles`): each returns from :func:`_serve` and comes back with it.
 """
 
 from __future__ import annotations
@@ -52,14 +47,12 @@ from methods.engine.state import EVALUATIONS, Images
 from methods.engine.topology import _edge_faces
 from methods.imaging.counters import STAT_RUN_CYCLES, cycles
 
-#: The costs computed ahead of the loop, :data:`ROWS_PER_THREAD` rows per thread:
-#: ``edges`` (k, 2) in the order the loop would pop them, their ``costs`` (k,), kept
-#: ends ``keeps`` (k,; -1: the edge has no faces) and placements ``places`` (k, 3);
-#: ``count`` (:data:`N_AHEAD_COUNTS`,) int64; ``signal`` (k × :data:`LINE`,) int64: for
-#: helper h the generation it was handed (at ``h × LINE``) and the last one it served
-#: (``h × LINE + 1``), on a cache line of their own; for row i of a batch, who may take
-#: it (``i × LINE + CLAIM``: -g while free in generation g, g once taken) and the
-#: generation it was finished in (``i × LINE + DONE``), on another.
+#: The costs computed ahead of the loop, one row per thread: ``edges`` (k, 2) in the
+#: order the loop would pop them, their ``costs`` (k,), kept ends ``keeps`` (k,; -1:
+#: the edge has no faces) and placements ``places`` (k, 3); ``count``
+#: (:data:`N_AHEAD_COUNTS`,) int64; ``signal`` (k × :data:`LINE`,) int64, per helper
+#: the generation it was handed (at ``row × LINE``) and the one it finished (at
+#: ``row × LINE + LINE // 2``), on a cache line of its own.
 Ahead = namedtuple("Ahead", "edges costs keeps places count signal")
 
 #: Entries of :data:`Ahead`'s ``count``: rows of the current batch (0 after a
@@ -74,18 +67,10 @@ AHEAD_USED = 4
 AHEAD_GENERATION = 5
 AHEAD_TILES = 6
 AHEAD_FAILED = 7
-AHEAD_BATCH = 8  # rows of the batch being handed out, for the helpers
-AHEAD_HELPERS = 9  # helper threads
-N_AHEAD_COUNTS = 10
+N_AHEAD_COUNTS = 8
 
-#: int64 entries per helper and per row in ``signal``: two 64-byte cache lines.
+#: int64 entries per helper in ``signal``: two 64-byte cache lines.
 LINE = 16
-SERVED = 1
-DONE = LINE // 2
-CLAIM = LINE // 2 + 1
-#: Rows of a batch per thread: whoever is free takes the next row, so the loop does not
-#: wait for the slowest of exactly one cost per thread.
-ROWS_PER_THREAD = 2
 #: What :func:`_serve` returns (and the generation that tells it to): stop; or come
 #: back with the new tile index.
 QUIT = -1
@@ -124,20 +109,6 @@ def _store_release(typingctx, ary, i, value):
         return context.get_dummy_value()
 
     return types.void(ary, i, value), codegen
-
-
-@intrinsic
-def _claim(typingctx, ary, i, expected, value):
-    """``ary[i] = value`` if it holds ``expected`` (int64, 1-d), atomically; whether it
-    did."""
-    def codegen(context, builder, signature, args):
-        aryty = signature.args[0]
-        a = context.make_array(aryty)(context, builder, args[0])
-        ptr = cgutils.get_item_pointer(context, builder, aryty, a, [args[1]])
-        out = builder.cmpxchg(ptr, args[2], args[3], "acq_rel", "acquire")
-        return builder.extract_value(out, 1)
-
-    return types.boolean(ary, i, expected, value), codegen
 
 
 @njit(cache=True, inline="always")
@@ -200,73 +171,53 @@ def _cost_row(i, ahead, mesh, rules, terms, scratch, images):
     places[i, 0], places[i, 1], places[i, 2] = p[0], p[1], p[2]
 
 
-@njit(cache=True)
-def _take_rows(g, n, ahead, mesh, rules, terms, scratch, images):
-    """Cost the rows of batch ``g`` (rows 1..n-1) that no one has taken yet, taking each
-    before costing it."""
-    signal = ahead.signal
-    for i in range(1, n):
-        if _claim(signal, i * LINE + CLAIM, -g, g):
-            _cost_row(i, ahead, mesh, rules, terms, scratch, images)
-            _store_release(signal, i * LINE + DONE, g)
-
-
 @njit(cache=True, nogil=True)
-def _serve(helper, tiles, ahead, mesh, rules, terms, scratch, images):
-    """A helper's loop: cost the free rows of each batch handed to it, until told to
-    quit (returns :data:`QUIT`) or handed a batch after the tile index changed from
-    version ``tiles`` (returns :data:`RETILE`, the batch still to serve)."""
+def _serve(row, tiles, ahead, mesh, rules, terms, scratch, images):
+    """A helper's loop: cost row ``row`` of each batch handed to it, until told to quit
+    (returns :data:`QUIT`) or handed a batch after the tile index changed from version
+    ``tiles`` (returns :data:`RETILE`, the batch still to do)."""
     # The run's structures outlive the helper (methods.engine.borrow).
     mesh, terms, scratch, images = borrowed((mesh, terms, scratch, images))
-    signal, handed, served = ahead.signal, helper * LINE, helper * LINE + SERVED
+    signal, handed, finished = ahead.signal, row * LINE, row * LINE + LINE // 2
     while True:
         g = _load_acquire(signal, handed)
         if g == QUIT:
             return QUIT
-        if g == signal[served]:  # only this helper writes it
+        if g == _load_acquire(signal, finished):
             _sched_yield()
             continue
         if _load_acquire(ahead.count, AHEAD_TILES) != tiles:  # bumped before g was handed
             return RETILE
         start = cycles()
-        _take_rows(g, _load_acquire(ahead.count, AHEAD_BATCH), ahead, mesh, rules, terms,
-                   scratch, images)
+        _cost_row(row, ahead, mesh, rules, terms, scratch, images)
         # Its working cycles join the run's, so that the image counters' shares of
         # them stay shares of all the work done (as the first pass's do).
         images.img.stats[STAT_RUN_CYCLES] += cycles() - start
-        _store_release(signal, served, g)
+        _store_release(signal, finished, g)
 
 
 @njit(cache=True)
-def _hand_out(heap, a, b, mesh, queue, ahead, helpers):
-    """Fill the batch with stale edge (a, b) and the next stale entries (:func:`_peek`),
-    free rows 1, 2, ... and wake the helpers; returns the rows."""
+def _hand_out(heap, a, b, mesh, queue, ahead):
+    """Fill the batch with stale edge (a, b) and the next stale entries (:func:`_peek`)
+    and hand rows 1, 2, ... to the helpers; returns the rows."""
     count, signal = ahead.count, ahead.signal
     n = _peek(heap, a, b, mesh, queue, ahead)
     g = count[AHEAD_GENERATION] + 1
     count[AHEAD_GENERATION] = g
-    if n > 1:
-        count[AHEAD_BATCH] = n
-        for i in range(1, n):
-            _store_release(signal, i * LINE + CLAIM, -g)
-        for h in range(1, helpers + 1):
-            _store_release(signal, h * LINE, g)
+    for i in range(1, n):
+        _store_release(signal, i * LINE, g)
     return n
 
 
 @njit(cache=True)
-def _gather(ahead, n, cost, keep, mesh, rules, terms, scratch, images):
-    """Row 0 of the batch is (cost, keep, ``scratch.p``); cost the rows no helper took,
-    then wait until the helpers finished theirs (raising if one failed). ``scratch.p``
-    is row 0's placement again on return."""
+def _gather(ahead, n, cost, keep, p):
+    """Row 0 of the batch is (cost, keep, p); wait until the helpers finished the
+    others (raising if one failed)."""
     count, signal, g = ahead.count, ahead.signal, ahead.count[AHEAD_GENERATION]
-    p = scratch.p
     ahead.costs[0], ahead.keeps[0] = cost, keep
     ahead.places[0, 0], ahead.places[0, 1], ahead.places[0, 2] = p[0], p[1], p[2]
-    _take_rows(g, n, ahead, mesh, rules, terms, scratch, images)
-    p[0], p[1], p[2] = ahead.places[0, 0], ahead.places[0, 1], ahead.places[0, 2]
     for i in range(1, n):
-        while _load_acquire(signal, i * LINE + DONE) != g:
+        while _load_acquire(signal, i * LINE + LINE // 2) != g:
             if _load_acquire(count, AHEAD_FAILED) != 0:
                 raise RuntimeError("a thread costing edges ahead failed")
             _sched_yield()
@@ -289,10 +240,10 @@ def recost(a, b, heap, mesh, rules, terms, scratch, images, queue, ahead):
         count[AHEAD_USED] += 1
         return cost, keep
     helped = count[AHEAD_HANDLE] >= 0
-    n = _hand_out(heap, a, b, mesh, queue, ahead, count[AHEAD_HELPERS]) if helped else 1
+    n = _hand_out(heap, a, b, mesh, queue, ahead) if helped else 1
     cost, keep = _evaluate(a, b, mesh, rules, terms, scratch, images)
     if helped:
-        _gather(ahead, n, cost, keep, mesh, rules, terms, scratch, images)
+        _gather(ahead, n, cost, keep, scratch.p)
     return cost, keep
 
 
@@ -340,25 +291,23 @@ def costs_ahead(mesh, rules, terms, scratch, images, threads: int | None = None)
     threads = numba.get_num_threads() if threads is None else int(threads)
     weights = rules.weights
     rendered = weights.image != 0.0 or weights.entropy != 0.0
-    n_helpers = threads - 1 if threads > 1 and rendered and not rules.verify else 0
-    rows = ROWS_PER_THREAD * threads if n_helpers else 1
+    rows = threads if threads > 1 and rendered and not rules.verify else 1
     ahead = Ahead(np.zeros((rows, 2), np.int64), np.zeros(rows), np.full(rows, -1, np.int64),
                   np.zeros((rows, 3)), np.zeros(N_AHEAD_COUNTS, np.int64),
-                  np.zeros(max(rows, n_helpers + 1) * LINE, np.int64))
+                  np.zeros(rows * LINE, np.int64))
     ahead.count[AHEAD_HANDLE] = -1
-    ahead.count[AHEAD_HELPERS] = n_helpers
     if rows == 1:
         yield ahead
         return
     handle = next(_HANDLES)
     states, helpers, errors = [], [], []
 
-    def serve(helper, own_scratch, own_images):
+    def serve(row, own_scratch, own_images):
         try:
             while True:
                 tiles = int(ahead.count[AHEAD_TILES])
                 own = Images(own_images.img, _TILES[handle], own_images.iws)
-                if _serve(helper, tiles, ahead, mesh, rules, terms, own_scratch, own) == QUIT:
+                if _serve(row, tiles, ahead, mesh, rules, terms, own_scratch, own) == QUIT:
                     return
         except BaseException as error:  # noqa: BLE001 - the loop sees the flag, the exit raises it
             errors.append(error)
@@ -369,16 +318,16 @@ def costs_ahead(mesh, rules, terms, scratch, images, threads: int | None = None)
     try:
         _TILES[handle] = images.tiles
         ahead.count[AHEAD_HANDLE] = handle
-        for h in range(1, n_helpers + 1):
+        for row in range(1, rows):
             states.append(_worker_state(scratch, images))
-            helper = threading.Thread(target=serve, args=(h, *states[-1]), daemon=True,
-                                      name=f"costs-ahead-{h}")
+            helper = threading.Thread(target=serve, args=(row, *states[-1]), daemon=True,
+                                      name=f"costs-ahead-{row}")
             helper.start()
             helpers.append(helper)
         yield ahead
     finally:
-        for h in range(1, n_helpers + 1):
-            ahead.signal[h * LINE] = QUIT
+        for row in range(1, rows):
+            ahead.signal[row * LINE] = QUIT
         for helper in helpers:
             helper.join()
         _TILES.pop(handle, None)
