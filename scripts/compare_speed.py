@@ -41,14 +41,27 @@ print(stats["wall_seconds"], stats["cpu_seconds"])
 """
 
 
+USAGE = ("usage: compare_speed.py DIR_A DIR_B ROUNDS [FACES] [METHOD] [--model NAME] "
+         "[--threads N]")
+
+
 def _option(args: list, name: str, default):
     """The value after ``name`` in ``args`` (both removed), else ``default``."""
     if name not in args:
         return default
     i = args.index(name)
+    if i + 1 == len(args):
+        sys.exit(f"compare_speed: {name} needs a value ({USAGE})")
     value = args[i + 1]
     del args[i:i + 2]
     return value
+
+
+def _count(text: str, what: str) -> int:
+    """``text`` as a whole number of at least 1, else a one-line error naming ``what``."""
+    if not text.isdigit() or int(text) < 1:
+        sys.exit(f"compare_speed: {what} must be a whole number of at least 1, got {text!r}")
+    return int(text)
 
 
 def main() -> None:
@@ -57,10 +70,18 @@ def main() -> None:
     env = {"PATH": "/usr/bin:/bin", "HOME": str(Path.home())}
     threads = _option(args, "--threads", None)
     if threads is not None:
-        env["NUMBA_NUM_THREADS"] = str(int(threads))
-    a, b, rounds = args[0], args[1], int(args[2])
-    faces = int(args[3]) if len(args) > 3 else 1332
-    module, cls = CLASSES[args[4] if len(args) > 4 else "image-driven"]
+        env["NUMBA_NUM_THREADS"] = str(_count(threads, "--threads"))
+    if not 3 <= len(args) <= 5:
+        sys.exit(USAGE)
+    a, b, rounds = args[0], args[1], _count(args[2], "ROUNDS")
+    faces = _count(args[3], "FACES") if len(args) > 3 else 1332
+    method = args[4] if len(args) > 4 else "image-driven"
+    if method not in CLASSES:
+        sys.exit(f"compare_speed: METHOD must be one of {', '.join(CLASSES)}, got {method!r}")
+    module, cls = CLASSES[method]
+    for tree in (a, b):
+        if not (Path(tree) / "methods").is_dir():
+            sys.exit(f"compare_speed: {tree} is not a checkout of this project (no methods/)")
     code = CODE.format(module=module, cls=cls, faces=faces, model=model)
     tests = str(Path(__file__).resolve().parent.parent / "tests")
     times, cpus = {a: [], b: []}, {a: [], b: []}
