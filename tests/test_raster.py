@@ -117,11 +117,14 @@ def _every_centre(x, y, z, c_lo, c_hi, r_lo, r_hi, depth, ids, fid):
                 depth[r - r_lo, c - c_lo], ids[r - r_lo, c - c_lo] = zz, fid
 
 
-def test_a_row_ends_where_it_leaves_the_triangle_exactly():
+@pytest.mark.parametrize("id_type", [np.int64, np.int32])
+def test_a_row_ends_where_it_leaves_the_triangle_exactly(id_type):
     """scan_row stops a pixel row at the first centre outside the triangle after the
     inside run, and in a wide box starts it near the triangle's left edge; a test of
     every centre of the box gives the same depths and ids, bit for bit, for slivers,
-    centres on edges and vertices, and both windings."""
+    centres on edges and vertices, and both windings. With int32 ids the rows go
+    through the vector pass (``_lanes``) except within LANES columns of the right edge;
+    with int64 ids through the scalar loop."""
     from methods.imaging.raster import ROW, T_W, T_X, T_Y, T_Z, scan_row
 
     rng = np.random.default_rng(7)
@@ -130,7 +133,7 @@ def test_a_row_ends_where_it_leaves_the_triangle_exactly():
     tris += [np.floor(rng.uniform(0, 32, (3, 2))) + 0.5 for _ in range(100)]  # on centres
     tris += [np.array([[0.0, 0.0], [31.0, 30.999999999], [15.0, 15.0 + 1e-12]])]  # sliver
     t = np.zeros((1, ROW))
-    depth, ids = np.full((SIZE, SIZE), np.inf), np.full((SIZE, SIZE), -1, np.int64)
+    depth, ids = np.full((SIZE, SIZE), np.inf), np.full((SIZE, SIZE), -1, id_type)
     want_depth, want_ids = depth.copy(), ids.copy()  # all triangles in one z-buffer
     covered = 0
     for fid, xy in enumerate(tris):
@@ -140,7 +143,7 @@ def test_a_row_ends_where_it_leaves_the_triangle_exactly():
         scan_row(t, 0, fid, 0, SIZE - 1, 0, SIZE - 1, False, depth, ids)
         _every_centre(xy[:, 0], xy[:, 1], z, 0, SIZE - 1, 0, SIZE - 1, want_depth,
                       want_ids, fid)
-        alone, want = np.full((SIZE, SIZE), -1, np.int64), np.full((SIZE, SIZE), -1, np.int64)
+        alone, want = np.full((SIZE, SIZE), -1, id_type), np.full((SIZE, SIZE), -1, id_type)
         scan_row(t, 0, fid, 0, SIZE - 1, 0, SIZE - 1, False, np.full((SIZE, SIZE), np.inf),
                  alone)
         _every_centre(xy[:, 0], xy[:, 1], z, 0, SIZE - 1, 0, SIZE - 1,
@@ -316,3 +319,33 @@ def test_a_sliver_behind_wins_no_pixel(a, b, s, offset, zs, gap):
     t = _row([a[0], b[0], c[0]], [a[1], b[1], c[1]], zs)
     far = np.nextafter(min(zs), -np.inf) if gap == 1e-16 else min(zs) - gap
     _assert_draws_nothing_if_behind(t, far)
+
+
+# depths past the near and far planes too: those pixels are clipped
+clipped_depth = st.floats(-1.5, 1.5, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.tuples(coord, coord, coord), st.tuples(coord, coord, coord),
+       st.one_of(depths, st.tuples(clipped_depth, clipped_depth, clipped_depth)),
+       st.integers(0, 12), st.integers(0, 12), st.integers(0, 10), st.integers(0, 2**31))
+def test_the_vector_pass_gives_every_centres_test(xs, ys, zs, c_lo, r_lo, extra, seed):
+    """Rows scanned LANES columns at a time (int32 ids, contiguous rows) give, bit for
+    bit, what testing every centre of the box gives: over a z-buffer that already holds
+    depths, some equal to the face's (ties go to the lower id), in a region that starts
+    anywhere and ends anywhere near the array's right edge (where the columns a pass
+    would write past the array make the row go through the scalar loop), with corners
+    beyond the near and far planes."""
+    from methods.imaging.raster import scan_row
+
+    rng = np.random.default_rng(seed)
+    width, height = 30 - c_lo + extra, 30 - r_lo
+    c_hi, r_hi = c_lo + width - 1 - extra, r_lo + height - 1
+    depth = rng.choice(np.r_[np.inf, np.asarray(zs), rng.uniform(-1, 1, 3)], (height, width))
+    ids = rng.integers(0, 4, (height, width)).astype(np.int32)
+    want_depth, want_ids = depth.copy(), ids.copy()
+    t = _row(list(xs), list(ys), list(zs))
+    scan_row(t, 0, 2, c_lo, c_hi, r_lo, r_hi, False, depth, ids)
+    _every_centre(xs, ys, zs, c_lo, c_hi, r_lo, r_hi, want_depth, want_ids, 2)
+    assert np.array_equal(ids, want_ids)
+    assert np.array_equal(depth, want_depth)

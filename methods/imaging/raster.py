@@ -45,7 +45,9 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit, prange
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.extending import intrinsic, overload
 
 from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, LUMA_B, LUMA_G, LUMA_R, SHADINGS
 
@@ -184,6 +186,88 @@ def _row_start(py, cmin, cmax, xa0, ya0, dx0, dy0, q0, s0, xa1, ya1, dx1, dy1, q
     return g if _fails(g - 0.5, py, xa, ya, dx, dy, q) else cmin
 
 
+#: Columns of a row tested at once (:func:`_lanes`): 8 doubles fill a 512-bit vector
+#: register.
+LANES = 8
+
+
+def _lane_types(depth, ids):
+    """Whether ``depth`` holds float64 and ``ids`` int32, the types :func:`_lanes` reads
+    and writes (decided when numba compiles the caller)."""
+    return depth.dtype == np.float64 and ids.dtype == np.int32
+
+
+@overload(_lane_types)
+def _lane_types_numba(depth, ids):
+    ok = depth.dtype == types.float64 and ids.dtype == types.int32
+    return lambda depth, ids: ok
+
+
+@intrinsic
+def _lanes(typingctx, dptr, gptr, n, lo, a0, a1, a2, dy0, dy1, dy2, xa0, xa1, xa2, q0, q1,
+           q2, z0, z1, z2, inv_area, fid):
+    """Depth-test the centres of columns lo, lo + 1, ..., lo + n (n < :data:`LANES`) of a
+    row in one vector pass, into the ``LANES`` depths at address ``dptr`` (float64) and
+    face ids at ``gptr`` (int32) that start at column lo; the columns past lo + n get
+    their own values back, so no other thread may write those columns meanwhile. Returns
+    the centres inside the face as bits (bit j: column lo + j).
+
+    Column c's edge function i is ``a_i - dy_i * (c + 0.5 - xa_i)``, with
+    ``a_i = dx_i * (py - ya_i)`` of the row: :func:`scan_row`'s arithmetic, operation for
+    operation, so each lane gives the scalar loop's bits (numba compiles without
+    fast-math flags, so no product is fused into an addition; ``tests/test_raster.py``
+    compares with Python's arithmetic). LLVM does not vectorise this loop
+    from Python, as it may not move one column's loads above the previous column's
+    stores into the other array, so the vector code is written out here."""
+    sig = types.int64(types.intp, types.intp, types.int64, types.int64,
+                      *([types.float64] * 16), types.int64)
+
+    def codegen(context, builder, signature, args):
+        (dptr, gptr, n, lo, a0, a1, a2, dy0, dy1, dy2, xa0, xa1, xa2, q0, q1, q2, z0, z1, z2,
+         inv_area, fid) = args
+        f64, i32, i64 = ir.DoubleType(), ir.IntType(32), ir.IntType(64)
+        vd, vi, vl = (ir.VectorType(f64, LANES), ir.VectorType(i32, LANES),
+                      ir.VectorType(i64, LANES))
+
+        def splat(x, vt):
+            undef = ir.Constant(vt, ir.Undefined)
+            v = builder.insert_element(undef, x, ir.Constant(i32, 0))
+            return builder.shuffle_vector(v, undef, ir.Constant(ir.VectorType(i32, LANES),
+                                                                [0] * LANES))
+
+        steps = ir.Constant(vl, list(range(LANES)))
+        cols = builder.add(splat(lo, vl), steps)
+        px = builder.fadd(builder.sitofp(cols, vd), splat(ir.Constant(f64, 0.5), vd))
+        edges, out = [], None
+        for a, dy, xa, q in ((a0, dy0, xa0, q0), (a1, dy1, xa1, q1), (a2, dy2, xa2, q2)):
+            e = builder.fsub(splat(a, vd),
+                             builder.fmul(splat(dy, vd), builder.fsub(px, splat(xa, vd))))
+            fails = builder.fcmp_ordered("<", e, splat(q, vd))
+            out = fails if out is None else builder.or_(out, fails)
+            edges.append(e)
+        z = builder.fadd(builder.fmul(edges[0], splat(z0, vd)),
+                         builder.fmul(edges[1], splat(z1, vd)))
+        z = builder.fmul(builder.fadd(z, builder.fmul(edges[2], splat(z2, vd))),
+                         splat(inv_area, vd))
+        dp = builder.inttoptr(dptr, vd.as_pointer())
+        gp = builder.inttoptr(gptr, vi.as_pointer())
+        d = builder.load(dp, align=8)
+        g = builder.load(gp, align=4)
+        live = builder.icmp_signed("<=", steps, splat(n, vl))
+        inside = builder.and_(live, builder.not_(out))  # NaN fails no edge, as in scan_row
+        near = builder.fcmp_ordered(">=", z, splat(ir.Constant(f64, -1.0), vd))
+        far = builder.fcmp_ordered("<=", z, splat(ir.Constant(f64, 1.0), vd))
+        win = builder.and_(inside, builder.and_(near, far))
+        tie = builder.and_(builder.fcmp_ordered("==", z, d),
+                           builder.icmp_signed("<", splat(fid, vl), builder.sext(g, vl)))
+        win = builder.and_(win, builder.or_(builder.fcmp_ordered("<", z, d), tie))
+        builder.store(builder.select(win, z, d), dp, align=8)
+        builder.store(builder.select(win, splat(builder.trunc(fid, i32), vi), g), gp, align=4)
+        return builder.zext(builder.bitcast(inside, ir.IntType(LANES)), i64)
+
+    return sig, codegen
+
+
 @njit(cache=True)
 def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=None):
     """Z-buffer row ``k`` of table ``t``, a face with id ``fid``, into the region
@@ -235,6 +319,13 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
     s0 = dx0 / dy0 if dy0 < 0.0 else np.nan
     s1 = dx1 / dy1 if dy1 < 0.0 else np.nan
     s2 = dx2 / dy2 if dy2 < 0.0 else np.nan
+    # Rows go through :func:`_lanes`, LANES columns at a time, when they can: it reads and
+    # writes LANES columns from its first, which must lie in contiguous rows of the arrays.
+    vector = (_lane_types(depth, ids) and cmax - c_lo + LANES <= depth.shape[1]
+              and depth.strides[1] == 8 and ids.strides[1] == 4)
+    narrow = cmax - cmin < LANES
+    dbase = depth.ctypes.data + (-c_lo) * 8
+    gbase = ids.ctypes.data + (-c_lo) * 4
     for r in range(rmin, rmax + 1):
         lo, hi = cmin, cmax
         if spans is not None:
@@ -242,11 +333,30 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
             if lo > hi:
                 continue
         py = r + 0.5
-        entered = False
         start = lo
         if skip:
             start = max(lo, _row_start(py, cmin, cmax, x1, y1, dx0, dy0, q0, s0, x2, y2,
                                        dx1, dy1, q1, s1, x0, y0, dx2, dy2, q2, s2))
+        if vector:
+            i = r - r_lo
+            dp, gp = dbase + i * depth.strides[0], gbase + i * ids.strides[0]
+            a0, a1, a2 = dx0 * (py - y1), dx1 * (py - y2), dx2 * (py - y0)
+            if narrow:  # the whole row at once
+                _lanes(dp + start * 8, gp + start * 4, hi - start, start, a0, a1, a2, dy0, dy1,
+                       dy2, x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
+                continue
+            entered = False
+            c = start
+            while c <= hi:
+                n = min(hi - c, LANES - 1)
+                inside = _lanes(dp + c * 8, gp + c * 4, n, c, a0, a1, a2, dy0, dy1, dy2, x1,
+                                x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
+                entered = entered or inside != 0
+                if entered and bounded and not (inside >> n) & 1:
+                    break  # the run of centres inside ended in these columns
+                c += LANES
+            continue
+        entered = False
         px = start - 0.5  # the centre's column, stepped exactly (k + 0.5 for integer k)
         for c in range(start, hi + 1):
             px += 1.0
