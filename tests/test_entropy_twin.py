@@ -21,6 +21,8 @@ import math
 import numpy as np
 import pytest
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.errors import ParamError
 from bench.mesh import Mesh
@@ -430,3 +432,38 @@ def test_game_models_duplicate_vertices_where_attributes_change():
 def test_bad_parameters_are_clear_errors(params, message):
     with pytest.raises(ParamError, match=message):
         EntropyTwin(**params).simplify(blob(1), 40)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31), st.integers(0, 30), st.integers(0, 30), st.integers(1, 34),
+       st.integers(1, 20), st.booleans())
+def test_a_rectangles_entropy_change_is_the_recounted_one(seed, c0, r0, cols, rows,
+                                                          background):
+    """``_entropy_change`` over a rectangle gives the change of the viewpoint entropy
+    recounted from both whole images, and with ``commit`` leaves the counts of the new
+    image."""
+    from methods.imaging.entropy import _entropy_change, entropy_init
+    from methods.imaging.state import entropy_state
+
+    rng = np.random.default_rng(seed)
+    m, size = 12, 64
+    before = rng.integers(-1, m, (2, size, size)).astype(np.int32)
+    before[1] = before[0][::-1]
+    c1, r1 = min(c0 + cols, size) - 1, min(r0 + rows, size) - 1
+    ids = np.full((size, size), -7, np.int32)  # rectangle-relative; the rest unused
+    region = before[1, r0:r1 + 1, c0:c1 + 1].copy()
+    change = rng.random(region.shape) < rng.choice([0.0, 0.05, 0.5])
+    region[change] = rng.integers(-1, m, np.count_nonzero(change))
+    ids[:r1 - r0 + 1, :c1 - c0 + 1] = region
+    after = before.copy()
+    after[1, r0:r1 + 1, c0:c1 + 1] = region
+    ent = entropy_state(2, m, on=True, background=background)
+    entropy_init(before, ent)
+    rect = np.array([c0, c1, r0, r1])
+    dh = _entropy_change(1, rect, ids, before, ent, True)
+    old, new = viewpoint_entropy(before, background), viewpoint_entropy(after, background)
+    assert dh == pytest.approx(new[1] - old[1], abs=1e-12)
+    again = entropy_state(2, m, on=True, background=background)
+    entropy_init(after, again)
+    assert np.array_equal(ent.counts, again.counts)
+    assert np.array_equal(ent.totals, again.totals)
