@@ -37,7 +37,9 @@ than clipped; protocol cameras never produce them (the model lies in [r, 3r] of 
 
 The per-triangle set-up (transforms, per-vertex lighting) is vectorised in NumPy; the
 per-pixel work runs in numba kernels, parallel over views (each view is independent,
-so the result does not depend on the number of threads).
+so the result does not depend on the number of threads). A row's centres are tested
+eight at a time in vector registers where the arrays allow it (:func:`_lanes`), with
+the scalar loop's operations, so with its bits.
 """
 
 from __future__ import annotations
