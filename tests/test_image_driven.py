@@ -13,6 +13,8 @@ The invariants of Lindstrom & Turk 2000 §4.2, each against an independent compu
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -29,6 +31,9 @@ from metrics.views import dodecahedron_directions, silhouette_cameras
 RES = 48
 PLACEMENT = Policy(placement="memoryless", quadric_weight=0.0, memoryless_weight=0.0,
                    boundary_weight=0.0)
+#: Half-edge collapses: the kept vertex stays, so a commit re-scans only the faces that
+#: held the removed one (methods.imaging.region.commit_geometry).
+HALF_EDGE = dataclasses.replace(PLACEMENT, placement="endpoints")
 
 
 def _term(mesh, shading="flat", specular=False, cull=None, res=RES):
@@ -39,8 +44,8 @@ def _term(mesh, shading="flat", specular=False, cull=None, res=RES):
                      cull_front=None if cull is None else tuple(cull))
 
 
-def _run(mesh, term, collapses, target=4):
-    return simplify_mesh(mesh, target, PLACEMENT, verify=True, image=term,
+def _run(mesh, term, collapses, target=4, policy=PLACEMENT):
+    return simplify_mesh(mesh, target, policy, verify=True, image=term,
                          max_collapses=collapses)
 
 
@@ -62,6 +67,28 @@ def test_incremental_images_with_texture_and_interior_views(small_torus):
     assert result.stats["image_mismatched_pixels"] == 0
     assert result.stats["face_id_mismatched_pixels"] == 0
     assert result.mesh.uv is not None
+
+
+@pytest.mark.parametrize("shading,specular", [("flat", False), ("gouraud", True)])
+def test_half_edge_collapses_keep_the_images_exact(shading, specular):
+    """The kept vertex's other faces keep their pixels at a commit and are re-shaded
+    where their normals change."""
+    mesh = blob()
+    result = _run(mesh, _term(mesh, shading, specular), collapses=120, policy=HALF_EDGE)
+    assert result.stats["collapses"] == 120
+    assert result.stats["image_mismatched_pixels"] == 0
+    assert result.stats["face_id_mismatched_pixels"] == 0
+    assert result.stats["depth_mismatched_pixels"] == 0
+
+
+def test_half_edge_collapses_keep_textured_images_exact(small_torus):
+    """On a textured mesh a half-edge collapse moves texture coordinates of the kept
+    vertex's wedges too: its other faces are re-shaded at the commit."""
+    result = _run(small_torus, _term(small_torus), collapses=60, target=100,
+                  policy=dataclasses.replace(HALF_EDGE, uv_correction=True))
+    assert result.stats["collapses"] == 60
+    assert result.stats["image_mismatched_pixels"] == 0
+    assert result.stats["face_id_mismatched_pixels"] == 0
 
 
 @pytest.mark.parametrize("shading", ["flat", "gouraud"])

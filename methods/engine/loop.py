@@ -220,11 +220,13 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds, ahead):
     Returns (faces removed, images) — the tile index is rebuilt when a commit overflows
     it (and handed to the costs computed ahead)."""
     P, p = mesh.P, scratch.p
-    if p[0] != P[v, 0] or p[1] != P[v, 1] or p[2] != P[v, 2]:
+    stays = p[0] == P[v, 0] and p[1] == P[v, 1] and p[2] == P[v, 2]
+    if not stays:
         mesh.moved[v] = True
     n = log.count[LOG_COLLAPSES]
+    first_changed = log.count[LOG_CHANGED]
     removed, n_changed, npairs, nt = _collapse(u, v, p.copy(), mesh, rules, terms, scratch,
-                                               log.changed, log.count[LOG_CHANGED], kinds)
+                                               log.changed, first_changed, kinds)
     log.count[LOG_CHANGED] = n_changed
     _log_wedges(log, npairs, nt, mesh, rules, scratch)
     efaces = scratch.efaces
@@ -232,9 +234,11 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds, ahead):
         log.faces[n, i] = efaces[i]
     if rules.weights.image != 0.0 or rules.weights.entropy != 0.0:
         img, tiles, iws = images.img, images.tiles, images.iws
-        ok, changed = commit_geometry(v, efaces, removed, P, mesh.F, mesh.FW, mesh.uv,
-                                      mesh.falive, mesh.vhead, mesh.cnext, mesh.valive, img,
-                                      tiles, iws)
+        # with v in place, only the faces that held u change their geometry
+        held_u = log.changed[first_changed:n_changed if stays else first_changed]
+        ok, changed = commit_geometry(v, stays, held_u, efaces, removed, P, mesh.F, mesh.FW,
+                                      mesh.uv, mesh.falive, mesh.vhead, mesh.cnext,
+                                      mesh.valive, img, tiles, iws)
         if not ok:
             tiles = build_tiles(img.fbox, mesh.falive, TILE, -(-img.Y.shape[2] // TILE),
                                 -(-img.Y.shape[1] // TILE))

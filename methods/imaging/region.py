@@ -393,13 +393,19 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
 
 
 @njit(cache=True)
-def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, valive, img,
-                    tiles, iws):
+def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vhead, cnext,
+                    valive, img, tiles, iws):
     """After collapsing into ``v`` (faces ``removed[:n_removed]`` deleted): update screen
     positions, normals, lighting and face boxes, note each view's rectangle, and list
     the changed faces in the tile index. Returns (whether no tile overflowed, how many
-    faces around ``v`` changed); after an overflow rebuild the index before
-    :func:`commit_render`."""
+    faces changed their geometry); after an overflow rebuild the index before
+    :func:`commit_render`.
+
+    With ``stays`` (v kept its position: a half-edge collapse) only the faces
+    ``held`` (those that held the removed vertex) change their geometry; the other
+    faces around ``v`` keep their pixels, and are re-shaded only where the luminance is
+    kept (their texture coordinates or normals may change). Otherwise every face
+    around ``v`` changes."""
     M, eyes, S, fbox, vn, L, shading = (img.M, img.eyes, img.S, img.fbox, img.vn, img.L,
                                         img.shading)
     mark, tick, t, vslot, ring, rects, buf = (iws.mark, iws.tick, iws.t, iws.vslot, iws.ring,
@@ -409,17 +415,31 @@ def commit_geometry(v, removed, n_removed, P, F, FW, uv, falive, vhead, cnext, v
     gouraud = shading.gouraud
     img.stats[STAT_COMMITS] += 1
     tick[0] += 1
-    na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, 0)
+    tk = tick[0]
+    na = 0
+    if stays:
+        for i in range(held.shape[0]):
+            f = held[i]
+            if falive[f] and mark[f] != tk:
+                mark[f] = tk
+                aff[na] = f
+                na += 1
+    # the faces around v whose shading may change (the ones above first)
+    nall = na
+    if not stays or img.ent.shade or gouraud:
+        nall = _faces_around(v, vhead, cnext, falive, mark, tk, aff, na)
+    if not stays:
+        na = nall
     for h in range(n_views):
         rects[h, 0], rects[h, 1], rects[h, 2], rects[h, 3] = 0, -1, 0, -1
         project(M, h, P[v], width, height, S[h, v])
         for i in range(n_removed):
             _grow(rects[h], fbox[h, removed[i]])
-    ns = na
+    ns = nall
     if gouraud:
         nr = 0
-        for i in range(na + n_removed):
-            f = aff[i] if i < na else removed[i - na]
+        for i in range(nall + n_removed):
+            f = aff[i] if i < nall else removed[i - nall]
             for j in range(3):
                 x = F[f, j]
                 if valive[x] and vslot[x] < 0:
