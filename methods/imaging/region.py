@@ -421,6 +421,9 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
         for i in range(held.shape[0]):
             f = held[i]
             if falive[f] and mark[f] != tk:
+                if na == aff.shape[0]:
+                    raise ValueError("a collapse affects more faces than AFFECTED_CAP "
+                                     "(methods.imaging.region)")
                 mark[f] = tk
                 aff[na] = f
                 na += 1
