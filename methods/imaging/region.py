@@ -69,20 +69,27 @@ def _add_to_ring(x, ring, vslot, nr):
     return nr + 1
 
 
+@njit(cache=True, inline="always")
+def _add_face(f, falive, mark, tk, out, n):
+    """Append face ``f`` to ``out[n:]`` if it is alive and not marked ``tk`` (marking
+    it); returns the new count."""
+    if falive[f] and mark[f] != tk:
+        if n == out.shape[0]:
+            raise ValueError("a collapse affects more faces than AFFECTED_CAP "
+                             "(methods.imaging.region)")
+        mark[f] = tk
+        out[n] = f
+        n += 1
+    return n
+
+
 @njit(cache=True)
 def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
     """Append to ``out[n:]`` the live faces of vertex ``y`` not marked ``tk`` (marking
     them); returns the new count."""
     c = vhead[y]
     while c != -1:
-        f = c // 3
-        if falive[f] and mark[f] != tk:
-            if n == out.shape[0]:
-                raise ValueError("a collapse affects more faces than AFFECTED_CAP "
-                                 "(methods.imaging.region)")
-            mark[f] = tk
-            out[n] = f
-            n += 1
+        n = _add_face(c // 3, falive, mark, tk, out, n)
         c = cnext[c]
     return n
 
@@ -419,14 +426,7 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
     na = 0
     if stays:
         for i in range(held.shape[0]):
-            f = held[i]
-            if falive[f] and mark[f] != tk:
-                if na == aff.shape[0]:
-                    raise ValueError("a collapse affects more faces than AFFECTED_CAP "
-                                     "(methods.imaging.region)")
-                mark[f] = tk
-                aff[na] = f
-                na += 1
+            na = _add_face(held[i], falive, mark, tk, aff, na)
     # the faces around v whose shading may change (the ones above first)
     nall = na
     if not stays or img.ent.shade or gouraud:
