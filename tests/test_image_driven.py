@@ -82,8 +82,8 @@ def test_half_edge_collapses_keep_the_images_exact(shading, specular):
 
 
 def test_half_edge_collapses_keep_textured_images_exact(small_torus):
-    """On a textured mesh a half-edge collapse moves texture coordinates of the kept
-    vertex's wedges too: its other faces are re-shaded at the commit."""
+    """Textured, with the UV correction: the commits of half-edge collapses keep the
+    images exact too."""
     result = _run(small_torus, _term(small_torus), collapses=60, target=100,
                   policy=dataclasses.replace(HALF_EDGE, uv_correction=True))
     assert result.stats["collapses"] == 60
