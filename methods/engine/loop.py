@@ -234,8 +234,8 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds, ahead):
         log.faces[n, i] = efaces[i]
     if rules.weights.image != 0.0 or rules.weights.entropy != 0.0:
         img, tiles, iws = images.img, images.tiles, images.iws
-        # with v in place, only the faces that held u change their geometry
-        held_u = log.changed[first_changed:n_changed if stays else first_changed]
+        # the faces that held u: with v in place, the only ones whose geometry changes
+        held_u = log.changed[first_changed:n_changed]
         ok, changed = commit_geometry(v, stays, held_u, efaces, removed, P, mesh.F, mesh.FW,
                                       mesh.uv, mesh.falive, mesh.vhead, mesh.cnext,
                                       mesh.valive, img, tiles, iws)

@@ -423,16 +423,17 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
     img.stats[STAT_COMMITS] += 1
     tick[0] += 1
     tk = tick[0]
-    na = 0
+    # aff[:na]: the faces whose geometry changes; aff[:nall]: those around v whose
+    # shading may change
     if stays:
+        na = 0
         for i in range(held.shape[0]):
             na = _add_face(held[i], falive, mark, tk, aff, na)
-    # the faces around v whose shading may change (the ones above first)
-    nall = na
-    if not stays or img.ent.shade or gouraud:
-        nall = _faces_around(v, vhead, cnext, falive, mark, tk, aff, na)
-    if not stays:
-        na = nall
+        nall = na
+        if img.ent.shade or gouraud:
+            nall = _faces_around(v, vhead, cnext, falive, mark, tk, aff, na)
+    else:
+        na = nall = _faces_around(v, vhead, cnext, falive, mark, tk, aff, 0)
     for h in range(n_views):
         rects[h, 0], rects[h, 1], rects[h, 2], rects[h, 3] = 0, -1, 0, -1
         project(M, h, P[v], width, height, S[h, v])
