@@ -98,8 +98,13 @@ from methods.engine.policy import Policy
 from methods.engine.scale import at_workable_scale
 from methods.engine.simplify import simplify_mesh
 
-__all__ = ["EntropyTwin", "viewpoint_entropy", "entropy_term", "rebuild_normals",
-           "NORMALS_ANGLE"]
+__all__ = [
+    "NORMALS_ANGLE",
+    "EntropyTwin",
+    "entropy_term",
+    "rebuild_normals",
+    "viewpoint_entropy",
+]
 
 #: Default smoothing angle of :func:`rebuild_normals` in degrees (see the module notes).
 NORMALS_ANGLE = 60.0
@@ -331,5 +336,4 @@ class EntropyTwin(Method):
             "mean_view_entropy": float(np.mean(s["view_entropy"])),
             "engine_seconds": s["engine_seconds"],
             "seconds": time.perf_counter() - start})
-        stats.update({k: v for k, v in s.items() if k.startswith("ahead_")})
         return SimplifyResult(out, stats, result.stop_reason)

@@ -139,7 +139,6 @@ class ImageDriven(Method):
         stats["image_seconds"] = time.perf_counter() - t
         for key, value in result.stats.items():
             if key in ("collapses", "cost_evaluations", "image_evaluations", "pixels_shaded",
-                       "face_rows", "tile_rebuilds", "rejections") or key.endswith("_share") \
-                    or key.startswith("ahead_"):
+                       "face_rows", "tile_rebuilds", "rejections") or key.endswith("_share"):
                 stats[key] = value
         return SimplifyResult(result.mesh, stats, result.stop_reason)

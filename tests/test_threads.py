@@ -10,8 +10,6 @@ import sys
 import numba
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from bench.harness.jobs import use_threads
 from bench.harness.runner import default_threads, usable_cores
@@ -154,15 +152,15 @@ def test_a_bad_thread_count_is_one_line(command, tmp_path):
 
 def _image_run(mesh, target, threads, monkeypatch, entropy=0.0):
     """simplify_mesh with Lindstrom & Turk's image term (or the viewpoint entropy) on
-    ``threads`` threads: (result, the helpers' counters)."""
-    import methods.engine.ahead as ahead
+    ``threads`` threads."""
+    import methods.engine.views as views
     from methods.engine.policy import Policy
     from methods.engine.simplify import simplify_mesh
     from methods.imaging.raster import rasterize_luminance
     from methods.imaging.state import ImageTerm
     from metrics.views import silhouette_cameras
 
-    monkeypatch.setattr(ahead.numba, "get_num_threads", lambda: threads)
+    monkeypatch.setattr(views.numba, "get_num_threads", lambda: threads)
     cameras = silhouette_cameras(mesh)
     term = ImageTerm(tuple(cameras), rasterize_luminance(mesh, cameras, 48, 48),
                      weight=1.0, entropy_weight=entropy)
@@ -172,18 +170,18 @@ def _image_run(mesh, target, threads, monkeypatch, entropy=0.0):
 
 
 @pytest.mark.parametrize("entropy", [0.0, 1.0])
-def test_costs_computed_ahead_change_nothing(entropy, monkeypatch):
-    """With helpers costing the next stale entries (methods.engine.ahead), the loop
-    takes the serial run's collapses bit for bit, with as many evaluations; the run
-    uses their costs, and rebuilds its tile index on the way (which the helpers must
-    pick up)."""
+def test_shared_views_change_nothing(entropy, monkeypatch):
+    """With helpers taking views of each evaluation and commit (methods.engine.views),
+    the loop takes the serial run's collapses bit for bit, with as many evaluations; the
+    helpers render views, and the run rebuilds its tile index on the way (which the
+    helpers must pick up)."""
     from conftest import icosphere
 
     mesh = icosphere(3)
     one = _image_run(mesh, 40, 1, monkeypatch, entropy)
     three = _image_run(mesh, 40, 3, monkeypatch, entropy)
-    assert "ahead_batches" not in one.stats
-    assert three.stats["ahead_costs_used"] > 0 and three.stats["tile_rebuilds"] > 0
+    assert one.stats["helper_views"] == 0
+    assert three.stats["helper_views"] > 0 and three.stats["tile_rebuilds"] > 0
     for key in ("collapses", "cost_evaluations", "tile_rebuilds"):
         assert one.stats[key] == three.stats[key]
     assert np.array_equal(one.mesh.faces, three.mesh.faces)
@@ -198,7 +196,7 @@ def _run_with_failing_helper(monkeypatch, serve):
     hanging it: the error the run raised."""
     import threading
 
-    import methods.engine.ahead as ahead
+    import methods.engine.views as views
     from conftest import icosphere
 
     outcome = []
@@ -209,7 +207,7 @@ def _run_with_failing_helper(monkeypatch, serve):
         except BaseException as error:  # noqa: BLE001 - the caller looks at it
             outcome.append(error)
 
-    monkeypatch.setattr(ahead, "_serve", serve)
+    monkeypatch.setattr(views, "serve_views", serve)
     loop = threading.Thread(target=run, daemon=True)
     loop.start()
     loop.join(timeout=120)
@@ -229,12 +227,12 @@ def test_a_failing_helper_fails_the_run(monkeypatch):
 
 
 def test_a_helper_failing_mid_run_fails_the_run(monkeypatch):
-    """A helper that fails while the loop waits for its row of a batch (here: on its
+    """A helper that fails while the loop waits for it to finish a job (here: on its
     way back after the first tile rebuild) makes the loop raise instead of waiting for
     ever, and the run raises the helper's error."""
-    import methods.engine.ahead as ahead
+    import methods.engine.views as views
 
-    real, calls = ahead._serve, []
+    real, calls = views.serve_views, []
 
     def fails_second_time(*args):
         calls.append(args[0])
@@ -245,55 +243,3 @@ def test_a_helper_failing_mid_run_fails_the_run(monkeypatch):
     error = _run_with_failing_helper(monkeypatch, fails_second_time)
     assert calls == [1, 1]
     assert isinstance(error, ValueError) and "AFFECTED_CAP" in str(error)
-
-
-def _peek_oracle(entries, a, b, valive, stamp, pushed_at, rows, per_row):
-    """methods.engine.ahead._peek in plain Python: the rows it should fill."""
-    out = [(a, b)]
-    if rows == 1:
-        return out
-    for seen, (_, x, y, sx, sy, _, _, _, keep) in enumerate(sorted(entries), start=1):
-        if valive[x] and valive[y]:
-            if sx == stamp[x] and sy == stamp[y] and keep != -1:
-                break
-            if (sx == -1 or (sx >= pushed_at[x] and sy >= pushed_at[y])) \
-                    and (x, y) not in out:
-                out.append((x, y))
-        if len(out) == rows or seen >= per_row * rows:
-            break
-    return out
-
-
-@pytest.mark.filterwarnings("ignore::numba.NumbaPendingDeprecationWarning")
-@given(st.data())
-@settings(max_examples=60, deadline=None)
-def test_peek_takes_the_entries_the_loop_would_recost_next(data):
-    """``_peek`` fills a batch with the stale, live, not superseded entries in pop order
-    up to the first current one, each edge once, and leaves the heap as it was: the same
-    entries, still popping in order."""
-    import heapq
-    from collections import namedtuple
-
-    from methods.engine.ahead import PEEK_PER_ROW, _peek
-
-    nv = 5
-    valive = np.array(data.draw(st.lists(st.booleans(), min_size=nv, max_size=nv)))
-    stamp = np.array(data.draw(st.lists(st.integers(0, 2), min_size=nv, max_size=nv)))
-    pushed_at = np.minimum(stamp, data.draw(st.integers(0, 2)))
-    vertex, small = st.integers(0, nv - 1), st.integers(-1, 2)
-    entries = data.draw(st.lists(st.tuples(
-        st.floats(0, 4).map(lambda c: float(round(c))), vertex, vertex, small, small,
-        st.just(0.0), st.just(0.0), st.just(0.0), small), min_size=1, max_size=40))
-    entries = [(c, x, y, -1 if sx == -1 else sx, -1 if sx == -1 else max(sy, 0), px, py, pz,
-                k) for c, x, y, sx, sy, px, py, pz, k in entries]
-    rows = data.draw(st.integers(1, 4))
-    heap = list(entries)
-    heapq.heapify(heap)
-    Mesh = namedtuple("Mesh", "valive")
-    Queue = namedtuple("Queue", "stamp pushed_at")
-    Ahead = namedtuple("Ahead", "edges")
-    batch = Ahead(np.zeros((rows, 2), np.int64))
-    n = _peek(heap, 0, 1, Mesh(valive), Queue(stamp, pushed_at), batch)
-    want = _peek_oracle(entries, 0, 1, valive, stamp, pushed_at, rows, PEEK_PER_ROW)
-    assert [tuple(e) for e in batch.edges[:n]] == want
-    assert [heapq.heappop(heap) for _ in range(len(heap))] == sorted(entries)

@@ -12,8 +12,8 @@ Every method of the suite that removes edges runs on this engine. The pipeline, 
     _canny_units                with canny_units="base-cost": the base cost's scale
                                 from every edge's first cost (first_costs)
     first_costs (initial.py)    every edge costed once, on the job's threads
-    costs_ahead (ahead.py)      with rendered costs and threads to spare: helper threads
-                                that cost the loop's next stale entries ahead
+    views_shared (views.py)     with rendered costs and threads to spare: helper threads
+                                that take views of each evaluation and commit
     _run (numba, loop.py)       _collect_candidates; then _pop_current, _check_candidate
                                 (or _block), _take (log, collapse, images),
                                 _requeue_neighbours / _requeue_apexes

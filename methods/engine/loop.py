@@ -3,8 +3,7 @@ and CGAL's ``Edge_collapse::run``::
 
     _collect_candidates     queue every edge at its first cost (methods.engine.initial)
     loop:
-      _pop_current          pop entries until one is current (re-cost stale ones,
-                            several at once with threads to spare: methods.engine.ahead)
+      _pop_current          pop entries until one is current (re-cost stale ones)
       _check_candidate      the validity rules (methods.engine.topology._check)
       _block                a rejected edge waits for an endpoint to change
       _take                 log, collapse, bring the images up to date
@@ -22,7 +21,6 @@ import numpy as np
 from numba import njit, types
 from numba.typed import Dict
 
-from methods.engine.ahead import forget, recost, share_tiles
 from methods.engine.borrow import borrowed
 from methods.engine.collapse import _collapse
 from methods.engine.cost import _evaluate
@@ -53,6 +51,7 @@ from methods.engine.topology import (
 )
 from methods.imaging.counters import STAT_RUN_CYCLES, STAT_TILE_REBUILDS, cycles
 from methods.imaging.region import commit_geometry, commit_render
+from methods.imaging.share import share_tiles
 from methods.imaging.tiles import TILE, build_tiles
 from metrics.shading import BACKGROUND
 
@@ -93,11 +92,10 @@ def _collect_candidates(heap, first, rules, queue, nv):
 
 
 @njit(cache=True)
-def _pop_current(heap, mesh, rules, terms, scratch, images, queue, ahead):
+def _pop_current(heap, mesh, rules, terms, scratch, images, queue):
     """Pop until an entry is current and return it as (found, cost, fresh, a, b, keep),
     the placement in ``scratch.p``. A stale entry (a stamp changed, or queued lazily) is
-    re-costed (:func:`methods.engine.ahead.recost`: with threads to spare, together
-    with the next stale ones) and pushed back (Lindstrom & Turk 2000, §4.2.2), unless a
+    re-costed and pushed back (Lindstrom & Turk 2000, §4.2.2), unless a
     newer entry for its edge was pushed since; entries of dead vertices or edges are
     dropped. With ``verify`` the current entry is re-costed too and a differing cost is
     counted."""
@@ -113,8 +111,7 @@ def _pop_current(heap, mesh, rules, terms, scratch, images, queue, ahead):
             if _edge_faces(a, b, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
                            scratch.efaces) == 0:
                 continue
-            cost, keep = recost(a, b, heap, mesh, rules, terms, scratch, images, queue,
-                                ahead)
+            cost, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
             _push(heap, cost, a, b, stamp[a], stamp[b], p, keep)
             _remember(queue, rules, a, b, mesh.P.shape[0], cost)
             continue
@@ -214,11 +211,11 @@ def _log_wedges(log, npairs, nt, mesh, rules, scratch):
 
 
 @njit(cache=True)
-def _take(u, v, mesh, rules, terms, scratch, images, log, kinds, ahead):
+def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
     """Collapse u into v at ``scratch.p``: note whether v moves, collapse, log the
     removed faces and merged wedges, and bring the images (or face ids) up to date.
     Returns (faces removed, images) — the tile index is rebuilt when a commit overflows
-    it (and handed to the costs computed ahead)."""
+    it (and handed to the threads that share the views)."""
     P, p = mesh.P, scratch.p
     stays = p[0] == P[v, 0] and p[1] == P[v, 1] and p[2] == P[v, 2]
     if not stays:
@@ -243,7 +240,7 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds, ahead):
             tiles = build_tiles(img.fbox, mesh.falive, TILE, -(-img.Y.shape[2] // TILE),
                                 -(-img.Y.shape[1] // TILE))
             img.stats[STAT_TILE_REBUILDS] += 1
-            share_tiles(ahead, tiles)
+            share_tiles(iws.vjob, tiles)
             images = Images(img, tiles, iws)
         commit_render(changed, P, mesh.F, mesh.FW, mesh.uv, mesh.falive, img, images.tiles,
                       iws, float(BACKGROUND))
@@ -363,11 +360,10 @@ def _new_queue(nv):
 
 
 @njit(cache=True, nogil=True)
-def _run(mesh, rules, terms, scratch, images, kinds, first, ahead):
+def _run(mesh, rules, terms, scratch, images, kinds, first):
     """Collapse edges of ``mesh`` until ``rules.target`` faces remain, no valid collapse
     does, or ``rules.max_collapses`` were taken, starting from every edge's first cost
-    (``first``: :func:`methods.engine.initial.first_costs`); ``ahead``
-    (:data:`methods.engine.ahead.Ahead`) holds the costs computed ahead, if any.
+    (``first``: :func:`methods.engine.initial.first_costs`).
 
     Returns (stopped (1: no valid collapse remains), evaluations, mismatches, rejects
     (counts by rejection code - 1), log (:data:`~methods.engine.state.Log`, trimmed
@@ -375,8 +371,7 @@ def _run(mesh, rules, terms, scratch, images, kinds, first, ahead):
     run_start = cycles()
     # The hot path sees the state without reference counts (methods.engine.borrow):
     # the arguments outlive the loop, and ``owned_queue`` is read after it.
-    mesh, terms, scratch, images, kinds, ahead = borrowed((mesh, terms, scratch, images,
-                                                           kinds, ahead))
+    mesh, terms, scratch, images, kinds = borrowed((mesh, terms, scratch, images, kinds))
     nv, F = mesh.P.shape[0], mesh.F
     heap, owned_queue = _new_queue(nv)
     queue = borrowed(owned_queue)
@@ -402,7 +397,7 @@ def _run(mesh, rules, terms, scratch, images, kinds, first, ahead):
             break
         # Pop the cheapest current candidate (stale ones are re-costed on the way).
         found, cost, fresh, a, b, keep = _pop_current(heap, mesh, rules, terms, scratch,
-                                                      images, queue, ahead)
+                                                      images, queue)
         if not found:
             break
         u = a if keep == b else b
@@ -417,9 +412,7 @@ def _run(mesh, rules, terms, scratch, images, kinds, first, ahead):
             break
         # Take it: log, collapse, update the images.
         log = _log_collapse(log, u, v, fresh, scratch.p)
-        removed, images = _take(u, v, mesh, rules, terms, scratch, images, log, kinds,
-                                ahead)
-        forget(ahead)  # the mesh changed: no cost computed ahead holds any more
+        removed, images = _take(u, v, mesh, rules, terms, scratch, images, log, kinds)
         faces -= removed
         mesh.vboundary[v] = mesh.vboundary[v] or mesh.vboundary[u]  # stays a boundary
         # Stamp and re-queue: the costs around v changed.

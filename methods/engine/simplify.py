@@ -10,7 +10,6 @@ import numpy as np
 
 from bench.io.atlas import wedge_tiles
 from bench.mesh import Mesh
-from methods.engine.ahead import ahead_statistics, costs_ahead
 from methods.engine.initial import edge_areas, first_costs
 from methods.engine.loop import _run
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
@@ -34,6 +33,7 @@ from methods.engine.state import (
     new_scratch,
 )
 from methods.engine.topology import _corner_lists, vboundary_of
+from methods.engine.views import views_shared
 from methods.engine.wedges import _face_kappa
 from methods.imaging.state import dummy_state
 
@@ -111,9 +111,9 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
         terms, canny_stats = _canny_units(arrays, rules, terms, images)
     scratch = new_scratch(len(arrays.P))
     first = first_costs(arrays, rules, terms, scratch, images)
-    with costs_ahead(arrays, rules, terms, scratch, images) as ahead:
+    with views_shared(arrays, rules, scratch, images):
         stopped, evaluations, mismatches, rejects, log = _run(arrays, rules, terms, scratch,
-                                                              images, prep.kinds, first, ahead)
+                                                              images, prep.kinds, first)
     image_stats = {} if image is None else image.statistics(
         mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
         arrays.vhead, arrays.cnext, arrays.valive, prep.lo, prep.scale)
@@ -133,7 +133,6 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
                         time.perf_counter() - start)
     stats.update(image_stats)
     stats.update(canny_stats)
-    stats.update(ahead_statistics(ahead))
     if tiles is not None:
         stats["uvs_kept_in_tile"] = clamped
     out_log, Q, valive = _log_in_input_numbering(log, prep, arrays, tiles)
@@ -286,7 +285,7 @@ def _canny_units(arrays: MeshArrays, rules: Rules, terms: Terms, images) -> tupl
         per_area = 1.0 / mean_area
     return terms._replace(canny_per_area=per_area), {
         "canny_base_cost": mean_cost if measured else 0.0,
-        "canny_cost_noise": noise, "canny_edges_costed": int(len(costs))}
+        "canny_cost_noise": noise, "canny_edges_costed": len(costs)}
 
 
 def _image_state(mesh: Mesh, image, a: MeshArrays, prep: _Prepared, texture_quadrics):

@@ -11,7 +11,7 @@ from numba.extending import intrinsic
 #: Counters kept in the state's ``stats`` array.
 STAT_NAMES = ("image_evaluations", "pixels_shaded", "face_rows", "raster_cycles",
               "run_cycles", "tile_rebuilds", "commits", "gather_cycles", "shade_cycles",
-              "setup_cycles")
+              "setup_cycles", "helper_views")
 
 #: Indices into ``stats``, by name (``STAT_NAMES[STAT_COMMITS] == "commits"``).
 STAT_IMAGE_EVALUATIONS = 0  # image-cost evaluations (region re-renders for a candidate)
@@ -24,6 +24,7 @@ STAT_COMMITS = 6  # collapses committed to the images
 STAT_GATHER_CYCLES = 7  # cycles gathering a region's candidate faces
 STAT_SHADE_CYCLES = 8  # cycles shading pixels
 STAT_SETUP_CYCLES = 9  # cycles setting up face rows
+STAT_HELPER_VIEWS = 10  # views re-rendered by the threads that share them (methods.engine.views)
 
 
 @intrinsic

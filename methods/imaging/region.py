@@ -11,9 +11,11 @@ from methods.imaging.counters import (
     STAT_COMMITS,
     STAT_FACE_ROWS,
     STAT_GATHER_CYCLES,
+    STAT_HELPER_VIEWS,
     STAT_IMAGE_EVALUATIONS,
     STAT_PIXELS_SHADED,
     STAT_RASTER_CYCLES,
+    STAT_RUN_CYCLES,
     STAT_SETUP_CYCLES,
     STAT_SHADE_CYCLES,
     cycles,
@@ -28,6 +30,24 @@ from methods.imaging.rows import (
     project,
     row_box,
     vertex_normal,
+)
+from methods.imaging.share import (
+    JOB_ATICK,
+    JOB_HELPERS,
+    JOB_KIND,
+    JOB_NA,
+    JOB_NPAIRS,
+    JOB_NS,
+    JOB_U,
+    JOB_V,
+    KIND_COMMIT,
+    KIND_COST,
+    done,
+    hand_out,
+    next_job,
+    next_view,
+    publish,
+    wait,
 )
 from methods.imaging.tiles import TILE, _gather, _tiles_add
 
@@ -122,7 +142,7 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     if ent.on:  # viewpoint entropy: the count changes inside the rectangle
         dh = _entropy_change(h, rect, iws.ids, img.IDS, ent, commit)
         if not commit:
-            ent.delta[0] += abs(dh)
+            iws.vdh[h] = abs(dh)
     if not ent.shade:  # face ids only, no luminance (entropy without equation 8)
         if commit:
             _commit_ids(h, rect, img, iws)
@@ -330,16 +350,13 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
     squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
     whose texture coordinates become ``target_uv[:nt]``."""
-    M, eyes, S, fbox, shading, stats = img.M, img.eyes, img.S, img.fbox, img.shading, img.stats
-    mark, tick, t, vslot, ov_light, wslot, new_uv = (iws.mark, iws.tick, iws.t, iws.vslot,
-                                                     iws.ov_light, iws.wslot, iws.new_uv)
-    ring, rects, buf, n3, sp, box, aff = (iws.ring, iws.rects, iws.buf, iws.n3, iws.sp,
-                                          iws.box, iws.aff)
-    amark, gmark = iws.amark, iws.gmark
-    n_views, height, width = img.Y.shape
+    eyes, shading, stats = img.eyes, img.shading, img.stats
+    mark, tick, vslot, ov_light, wslot, new_uv = (iws.mark, iws.tick, iws.vslot, iws.ov_light,
+                                                  iws.wslot, iws.new_uv)
+    ring, buf, n3, aff, amark, gmark = iws.ring, iws.buf, iws.n3, iws.aff, iws.amark, iws.gmark
+    n_views = img.Y.shape[0]
     gouraud = shading.gouraud
     stats[STAT_IMAGE_EVALUATIONS] += 1
-    img.ent.delta[0] = 0.0  # sum of |dH_v| of this evaluation, read by the engine
     setup_start = cycles()
     if nt > new_uv.shape[0]:
         raise ValueError("more new texture coordinates than NEW_UV_CAP "
@@ -374,24 +391,20 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
         amark[aff[i]] = atick
     for i in range(na):
         gmark[aff[i]] = atick
-    cost = 0.0
     stats[STAT_SETUP_CYCLES] += cycles() - setup_start
+    job = iws.vjob
+    iws.vp[0], iws.vp[1], iws.vp[2] = p[0], p[1], p[2]
+    publish(job, KIND_COST, u, v, na, ns, atick, npairs)
+    g = hand_out(job) if job[JOB_HELPERS] > 0 else 0
+    _take_views(P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background)
+    if g > 0:
+        wait(job, g)
+    # the views' results, summed in view order whichever thread drew which
+    cost = dh = 0.0
     for h in range(n_views):
-        project(M, h, p, width, height, sp)
-        rect = rects[h]
-        rect[0], rect[1], rect[2], rect[3] = 0, -1, 0, -1
-        for i in range(ns):
-            _grow(rect, fbox[h, aff[i]])
-        for i in range(na):
-            f = aff[i]
-            if not (_has(F, f, u) and _has(F, f, v)):
-                fill_screen(t, 0, f, h, u, v, sp, S, F)
-                row_box(t, 0, width, height, box)
-                _grow(rect, box)
-        if rect[0] > rect[1] or rect[2] > rect[3]:
-            continue
-        cost += _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws,
-                             wfrom, wto, npairs, atick, False, background)
+        cost += iws.vcost[h]
+        dh += iws.vdh[h]
+    img.ent.delta[0] = dh
     for i in range(nr):
         vslot[ring[i]] = -1
     for i in range(nt):
@@ -479,12 +492,82 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
 def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
     """Re-render every view's rectangle noted by :func:`commit_geometry` into the
     images (``na``: its count of changed faces)."""
-    rects, sp = iws.rects, iws.sp
-    atick = iws.tick[0]  # commit_geometry marked the changed faces with it
-    none_i = np.full(1, -1, np.int64)
-    for h in range(img.Y.shape[0]):
-        rect = rects[h]
+    job = iws.vjob
+    # commit_geometry marked the changed faces with the tick
+    publish(job, KIND_COMMIT, -1, -1, na, na, iws.tick[0], 0)
+    g = hand_out(job) if job[JOB_HELPERS] > 0 else 0
+    _take_views(P, F, FW, uv, falive, img, tiles, iws, iws.cand, iws.cand, background)
+    if g > 0:
+        wait(job, g)
+
+
+@njit(cache=True)
+def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws, wfrom,
+               wto, npairs, background):
+    """View ``h``'s part of :func:`image_cost`: its rectangle re-rendered as after the
+    collapse; the change of the squared error goes to ``iws.vcost[h]``, |dH| to
+    ``iws.vdh[h]`` (0 for a view the collapse does not touch)."""
+    S, fbox, sp, t, box, aff = img.S, img.fbox, iws.sp, iws.t, iws.box, iws.aff
+    height, width = img.Y.shape[1], img.Y.shape[2]
+    iws.vcost[h] = iws.vdh[h] = 0.0
+    project(img.M, h, p, width, height, sp)
+    rect = iws.rects[h]
+    rect[0], rect[1], rect[2], rect[3] = 0, -1, 0, -1
+    for i in range(ns):
+        _grow(rect, fbox[h, aff[i]])
+    for i in range(na):
+        f = aff[i]
+        if not (_has(F, f, u) and _has(F, f, v)):
+            fill_screen(t, 0, f, h, u, v, sp, S, F)
+            row_box(t, 0, width, height, box)
+            _grow(rect, box)
+    if rect[0] > rect[1] or rect[2] > rect[3]:
+        return
+    iws.vcost[h] = _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles,
+                                iws, wfrom, wto, npairs, atick, False, background)
+
+
+@njit(cache=True)
+def _take_views(P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background):
+    """Render the published job's views, one at a time, until none is left; returns how
+    many this thread took."""
+    job = iws.vjob
+    kind, u, v, na, ns = job[JOB_KIND], job[JOB_U], job[JOB_V], job[JOB_NA], job[JOB_NS]
+    atick, npairs, p = job[JOB_ATICK], job[JOB_NPAIRS], iws.vp
+    n_views = img.Y.shape[0]
+    taken = 0
+    while True:
+        h = next_view(job)
+        if h >= n_views:
+            return taken
+        taken += 1
+        if kind == KIND_COST:
+            _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
+                       wfrom, wto, npairs, background)
+            continue
+        rect = iws.rects[h]
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue
-        _render_view(h, rect, na, -1, -1, sp, P[0], P, F, FW, uv, falive, img, tiles, iws,
-                     none_i, none_i, 0, atick, True, background)
+        _render_view(h, rect, na, -1, -1, iws.sp, P[0], P, F, FW, uv, falive, img, tiles,
+                     iws, wfrom, wto, 0, atick, True, background)
+
+
+@njit(cache=True, nogil=True)
+def serve_views(row, tiles_version, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto,
+                background):
+    """A helper's loop: take views of each job handed to it, until told to quit
+    (returns :data:`~methods.imaging.share.QUIT`) or handed a job after the tile index
+    changed from ``tiles_version`` (returns ``RETILE``, the job still to do)."""
+    job = iws.vjob
+    while True:
+        g = next_job(job, row, tiles_version)
+        if g < 0:
+            return g
+        start = cycles()
+        img.stats[STAT_HELPER_VIEWS] += _take_views(P, F, FW, uv, falive, img, tiles, iws,
+                                                    wfrom, wto, background)
+        # its working cycles join the run's, so that the image counters' shares of them
+        # stay shares of all the work done (as the first pass's do)
+        img.stats[STAT_RUN_CYCLES] += cycles() - start
+
+        done(job, row, g)

@@ -22,6 +22,7 @@ from methods.imaging.rows import (
     row_box,
     vertex_normal,
 )
+from methods.imaging.share import new_job
 from methods.imaging.tiles import TILE, Tiles, build_tiles
 from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, SHADINGS
 
@@ -58,7 +59,7 @@ Entropy = namedtuple("Entropy", "counts sums totals dcnt emark touched on backgr
 #: (H, 2) per image row the first and last column of its open holes.
 ImageScratch = namedtuple("ImageScratch", "mark tick cand t depth ids vslot ov_light wslot "
                                           "new_uv ring rects buf n3 sp box aff amark gmark "
-                                          "rowof rowmark hmark holes spans")
+                                          "rowof rowmark hmark holes spans vcost vdh vjob vp")
 
 
 def _workspace(n_views, nv, m, n_wedges, height, width):
@@ -74,7 +75,8 @@ def _workspace(n_views, nv, m, n_wedges, height, width):
         np.empty(AFFECTED_CAP, np.int64), np.zeros(m, np.int64), np.zeros(m, np.int64),
         np.zeros(m, np.int64), np.zeros(m, np.int64),
         np.zeros(-(-height // TILE) * -(-width // TILE), np.int64),
-        np.zeros((height * width, 2), np.int64), np.zeros((height, 2), np.int64))
+        np.zeros((height * width, 2), np.int64), np.zeros((height, 2), np.int64),
+        np.zeros(n_views), np.zeros(n_views), new_job(), np.zeros(3))
 
 
 def entropy_state(n_views, m, on=False, background=True, shade=True):
@@ -283,7 +285,7 @@ class ImageTerm:
 
         counts = dict(zip(STAT_NAMES, (int(x) for x in img.stats)))
         out = {k: counts[k] for k in ("image_evaluations", "pixels_shaded", "face_rows",
-                                      "tile_rebuilds")}
+                                      "tile_rebuilds", "helper_views")}
         if counts["run_cycles"] > 0:  # where the time goes
             for k in ("gather", "shade", "setup"):
                 out[f"{k}_share"] = counts[f"{k}_cycles"] / counts["run_cycles"]
