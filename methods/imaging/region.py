@@ -128,7 +128,8 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     changed faces are scanned over the whole rectangle, and the other faces only over
     the holes' bounding box. Depth ties go to the lower face id, so the result is the
     from-scratch render's. With ``commit`` the pixels go into ``Y``, ``IDS`` and
-    ``DZ``; otherwise returns the change of the squared error (equation 8).
+    ``DZ``; otherwise returns the change of the squared error (equation 8) and, with the
+    viewpoint entropy, leaves |dH| of the view in ``iws.vdh[h]``.
     """
     stats, ent = img.stats, img.ent
     start = cycles()
@@ -349,7 +350,9 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
                npairs, targets, nt, target_uv, background):
     """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
     squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
-    whose texture coordinates become ``target_uv[:nt]``."""
+    whose texture coordinates become ``target_uv[:nt]``. The sum of |dH| over the views
+    goes to ``img.ent.delta[0]``. The set-up is this thread's; the views are shared
+    with the run's helpers, if any (:mod:`methods.imaging.share`)."""
     eyes, shading, stats = img.eyes, img.shading, img.stats
     mark, tick, vslot, ov_light, wslot, new_uv = (iws.mark, iws.tick, iws.vslot, iws.ov_light,
                                                   iws.wslot, iws.new_uv)
@@ -491,7 +494,8 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
 @njit(cache=True)
 def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
     """Re-render every view's rectangle noted by :func:`commit_geometry` into the
-    images (``na``: its count of changed faces)."""
+    images (``na``: its count of changed faces), the views shared with the run's
+    helpers, if any."""
     job = iws.vjob
     # commit_geometry marked the changed faces with the tick
     publish(job, KIND_COMMIT, -1, -1, na, na, iws.tick[0], 0)
@@ -569,5 +573,4 @@ def serve_views(row, tiles_version, P, F, FW, uv, falive, img, tiles, iws, wfrom
         # its working cycles join the run's, so that the image counters' shares of them
         # stay shares of all the work done (as the first pass's do)
         img.stats[STAT_RUN_CYCLES] += cycles() - start
-
         done(job, row, g)

@@ -55,8 +55,11 @@ Entropy = namedtuple("Entropy", "counts sums totals dcnt emark touched on backgr
 #: faces of a vertex normal, ``n3`` (3,), ``sp`` (4,) a screen position, ``box`` (4,),
 #: the affected faces ``aff`` (AFFECTED_CAP,), marks ``amark``/``gmark``/``rowmark`` and
 #: ``rowof`` (m,), ``hmark`` (tiles of a view,) the tiles holding an open hole,
-#: ``holes`` (H * W, 2) the (row, column) of each hole of a rectangle, and ``spans``
-#: (H, 2) per image row the first and last column of its open holes.
+#: ``holes`` (H * W, 2) the (row, column) of each hole of a rectangle, ``spans``
+#: (H, 2) per image row the first and last column of its open holes, each view's
+#: results ``vcost`` and ``vdh`` (V,), and the job whose views the threads share
+#: (``vjob``, :func:`methods.imaging.share.new_job`; the kept vertex's position ``vp``
+#: (3,)).
 ImageScratch = namedtuple("ImageScratch", "mark tick cand t depth ids vslot ov_light wslot "
                                           "new_uv ring rects buf n3 sp box aff amark gmark "
                                           "rowof rowmark hmark holes spans vcost vdh vjob vp")
