@@ -120,6 +120,8 @@ def next_job(job, row, tiles):
 
 @njit(cache=True, inline="always")
 def done(job, row, g):
+    """Helper ``row`` finished generation ``g``: its views' results and images are
+    written (released to the thread that waits)."""
     store_release(job, finished(row), g)
 
 
