@@ -98,13 +98,8 @@ from methods.engine.policy import Policy
 from methods.engine.scale import at_workable_scale
 from methods.engine.simplify import simplify_mesh
 
-__all__ = [
-    "NORMALS_ANGLE",
-    "EntropyTwin",
-    "entropy_term",
-    "rebuild_normals",
-    "viewpoint_entropy",
-]
+__all__ = ["EntropyTwin", "viewpoint_entropy", "entropy_term", "rebuild_normals",
+           "NORMALS_ANGLE"]
 
 #: Default smoothing angle of :func:`rebuild_normals` in degrees (see the module notes).
 NORMALS_ANGLE = 60.0

@@ -75,18 +75,23 @@ def edge_areas(mesh, scratch, edges):
     return areas
 
 
-def _worker_state(scratch, images):
-    """A thread's own scratch and image state: what an evaluation writes is copied
-    (engine scratch, image scratch, counters, the entropy's scratch); what it only
-    reads (mesh, images, counts, tile index) is shared."""
-    img = images.img
+def own_counters(img):
+    """The image state ``img`` with counters and entropy scratch of its own, for another
+    thread; the images and the entropy's counts stay shared."""
     ent = img.ent
     own_ent = ent._replace(dcnt=np.zeros_like(ent.dcnt), emark=np.zeros_like(ent.emark),
                            touched=np.zeros_like(ent.touched), delta=np.zeros_like(ent.delta),
                            etick=np.zeros_like(ent.etick))
-    own_img = img._replace(stats=np.zeros_like(img.stats), ent=own_ent)
+    return img._replace(stats=np.zeros_like(img.stats), ent=own_ent)
+
+
+def _worker_state(scratch, images):
+    """A thread's own scratch and image state: what an evaluation writes is copied
+    (engine scratch, image scratch, counters, the entropy's scratch); what it only
+    reads (mesh, images, counts, tile index) is shared."""
     own_iws = type(images.iws)(*(np.array(a) for a in images.iws))
-    return new_scratch(len(scratch.mark)), Images(own_img, images.tiles, own_iws)
+    return (new_scratch(len(scratch.mark)),
+            Images(own_counters(images.img), images.tiles, own_iws))
 
 
 def first_costs(mesh, rules, terms, scratch, images, threads: int | None = None):

@@ -285,7 +285,7 @@ def _canny_units(arrays: MeshArrays, rules: Rules, terms: Terms, images) -> tupl
         per_area = 1.0 / mean_area
     return terms._replace(canny_per_area=per_area), {
         "canny_base_cost": mean_cost if measured else 0.0,
-        "canny_cost_noise": noise, "canny_edges_costed": len(costs)}
+        "canny_cost_noise": noise, "canny_edges_costed": int(len(costs))}
 
 
 def _image_state(mesh: Mesh, image, a: MeshArrays, prep: _Prepared, texture_quadrics):

@@ -29,6 +29,7 @@ from contextlib import contextmanager
 import numba
 import numpy as np
 
+from methods.engine.initial import own_counters
 from methods.imaging.region import serve_views
 from methods.imaging.share import (
     JOB_FAILED,
@@ -54,13 +55,9 @@ OWN_SCRATCH = ("mark", "tick", "cand", "t", "depth", "ids", "sp", "box", "rowof"
 def helper_state(images):
     """A helper's image state and scratch: its own counters, entropy scratch and render
     scratch (:data:`OWN_SCRATCH`); the run's images, counts and job."""
-    img, iws = images.img, images.iws
-    ent = img.ent
-    own_ent = ent._replace(dcnt=np.zeros_like(ent.dcnt), emark=np.zeros_like(ent.emark),
-                           touched=np.zeros_like(ent.touched), delta=np.zeros_like(ent.delta),
-                           etick=np.zeros_like(ent.etick))
-    own_img = img._replace(stats=np.zeros_like(img.stats), ent=own_ent)
-    return own_img, iws._replace(**{k: np.array(getattr(iws, k)) for k in OWN_SCRATCH})
+    iws = images.iws
+    return (own_counters(images.img),
+            iws._replace(**{k: np.array(getattr(iws, k)) for k in OWN_SCRATCH}))
 
 
 @contextmanager

@@ -500,6 +500,7 @@ def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
     # commit_geometry marked the changed faces with the tick
     publish(job, KIND_COMMIT, -1, -1, na, na, iws.tick[0], 0)
     g = hand_out(job) if job[JOB_HELPERS] > 0 else 0
+    # a commit merges no wedges (npairs 0): any int64 arrays stand for wfrom and wto
     _take_views(P, F, FW, uv, falive, img, tiles, iws, iws.cand, iws.cand, background)
     if g > 0:
         wait(job, g)
