@@ -349,3 +349,31 @@ def test_the_vector_pass_gives_every_centres_test(xs, ys, zs, c_lo, r_lo, extra,
     _every_centre(xs, ys, zs, c_lo, c_hi, r_lo, r_hi, want_depth, want_ids, 2)
     assert np.array_equal(ids, want_ids)
     assert np.array_equal(depth, want_depth)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.tuples(coord, coord, coord), st.tuples(coord, coord, coord),
+       st.one_of(depths, st.tuples(clipped_depth, clipped_depth, clipped_depth)),
+       st.integers(0, 12), st.integers(0, 12), st.integers(0, 10), st.integers(0, 2**31),
+       st.sampled_from([np.int32, np.int64]), st.sampled_from([0.0, 0.5, 1.0]))
+def test_a_probe_says_whether_the_scan_changes_a_pixel(xs, ys, zs, c_lo, r_lo, extra, seed,
+                                                        id_type, near):
+    """``wins_any`` is True exactly where testing every centre of the box changes some
+    depth or id, and writes nothing: with vector passes (int32) and the scalar loop
+    (int64), over z-buffers that the face wins in many pixels, in few (a share ``near``
+    of the pixels nearer than any corner) or in none."""
+    from methods.imaging.raster import wins_any
+
+    rng = np.random.default_rng(seed)
+    width, height = 30 - c_lo + extra, 30 - r_lo
+    c_hi, r_hi = c_lo + width - 1 - extra, r_lo + height - 1
+    depth = rng.choice(np.r_[np.inf, np.asarray(zs), rng.uniform(-1, 1, 3)], (height, width))
+    depth[rng.random((height, width)) < near] = -1.0  # the near plane: only a tie wins it
+    ids = rng.integers(0, 4, (height, width)).astype(id_type)
+    want_depth, want_ids = depth.copy(), ids.copy()
+    _every_centre(xs, ys, zs, c_lo, c_hi, r_lo, r_hi, want_depth, want_ids, 2)
+    changed = not (np.array_equal(ids, want_ids) and np.array_equal(depth, want_depth))
+    before_depth, before_ids = depth.copy(), ids.copy()
+    assert wins_any(_row(list(xs), list(ys), list(zs)), 0, 2, c_lo, c_hi, r_lo, r_hi, False,
+                    depth, ids) == changed
+    assert np.array_equal(depth, before_depth) and np.array_equal(ids, before_ids)

@@ -205,9 +205,19 @@ def _lane_types_numba(depth, ids):
     return lambda depth, ids: ok
 
 
-@intrinsic
-def _lanes(typingctx, dptr, gptr, n, lo, a0, a1, a2, dy0, dy1, dy2, xa0, xa1, xa2, q0, q1,
-           q2, z0, z1, z2, inv_area, fid):
+def _lane_pass(store):
+    """The intrinsic :func:`_lanes` (``store``) or :func:`_lanes_probe` (no stores)."""
+
+    def lanes(typingctx, dptr, gptr, n, lo, a0, a1, a2, dy0, dy1, dy2, xa0, xa1, xa2, q0,
+              q1, q2, z0, z1, z2, inv_area, fid):
+        return _lane_code(store)
+
+    lanes.__name__ = "_lanes" if store else "_lanes_probe"
+    lanes.__doc__ = _lane_code.__doc__
+    return intrinsic(lanes)
+
+
+def _lane_code(store):
     """Depth-test the centres of columns lo, lo + 1, ..., lo + n (n < :data:`LANES`) of a
     row in one vector pass, into the ``LANES`` depths at address ``dptr`` (float64) and
     face ids at ``gptr`` (int32) that start at column lo; the columns past lo + n get
@@ -220,7 +230,10 @@ def _lanes(typingctx, dptr, gptr, n, lo, a0, a1, a2, dy0, dy1, dy2, xa0, xa1, xa
     fast-math flags, so no product is fused into an addition; ``tests/test_raster.py``
     compares with Python's arithmetic). LLVM does not vectorise this loop
     from Python, as it may not move one column's loads above the previous column's
-    stores into the other array, so the vector code is written out here."""
+    stores into the other array, so the vector code is written out here.
+
+    Without ``store`` (:func:`_lanes_probe`) nothing is written, and the columns whose
+    (depth, id) the face would win come back too, as bits LANES.. of the result."""
     sig = types.int64(types.intp, types.intp, types.int64, types.int64,
                       *([types.float64] * 16), types.int64)
 
@@ -263,11 +276,19 @@ def _lanes(typingctx, dptr, gptr, n, lo, a0, a1, a2, dy0, dy1, dy2, xa0, xa1, xa
         tie = builder.and_(builder.fcmp_ordered("==", z, d),
                            builder.icmp_signed("<", splat(fid, vl), builder.sext(g, vl)))
         win = builder.and_(win, builder.or_(builder.fcmp_ordered("<", z, d), tie))
+        bits = builder.zext(builder.bitcast(inside, ir.IntType(LANES)), i64)
+        if not store:
+            won = builder.zext(builder.bitcast(win, ir.IntType(LANES)), i64)
+            return builder.or_(bits, builder.shl(won, ir.Constant(i64, LANES)))
         builder.store(builder.select(win, z, d), dp, align=8)
         builder.store(builder.select(win, splat(builder.trunc(fid, i32), vi), g), gp, align=4)
-        return builder.zext(builder.bitcast(inside, ir.IntType(LANES)), i64)
+        return bits
 
     return sig, codegen
+
+
+_lanes = _lane_pass(True)
+_lanes_probe = _lane_pass(False)
 
 
 @njit(cache=True)
@@ -281,6 +302,21 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
     faces in increasing id with a ``<`` depth test gives (``GL_LESS``), whatever order
     the faces are scanned in. Returns the number of pixel centres tested.
     """
+    return _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, False)
+
+
+@njit(cache=True)
+def wins_any(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
+    """Whether :func:`scan_row` of the same arguments would change any pixel of
+    ``depth`` and ``ids``, which it leaves as they are: it stops at the first pixel
+    the face wins."""
+    return _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, None, True) != 0
+
+
+@njit(cache=True, inline="always")
+def _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, probe):
+    """:func:`scan_row`; with ``probe``, :func:`wins_any` (1 at the first pixel won,
+    else 0)."""
     if t[k, T_W] <= 0.0 or t[k, T_W + 1] <= 0.0 or t[k, T_W + 2] <= 0.0:
         return 0
     x0, y0, z0 = t[k, T_X], t[k, T_Y], t[k, T_Z]
@@ -344,6 +380,12 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
             dp, gp = dbase + i * depth.strides[0], gbase + i * ids.strides[0]
             a0, a1, a2 = dx0 * (py - y1), dx1 * (py - y2), dx2 * (py - y0)
             if narrow:  # the whole row at once
+                if probe:
+                    if _lanes_probe(dp + start * 8, gp + start * 4, hi - start, start, a0, a1,
+                                    a2, dy0, dy1, dy2, x1, x2, x0, q0, q1, q2, z0, z1, z2,
+                                    inv_area, fid) >> LANES:
+                        return 1
+                    continue
                 _lanes(dp + start * 8, gp + start * 4, hi - start, start, a0, a1, a2, dy0, dy1,
                        dy2, x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
                 continue
@@ -351,8 +393,15 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
             c = start
             while c <= hi:
                 n = min(hi - c, LANES - 1)
-                inside = _lanes(dp + c * 8, gp + c * 4, n, c, a0, a1, a2, dy0, dy1, dy2, x1,
-                                x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
+                if probe:
+                    inside = _lanes_probe(dp + c * 8, gp + c * 4, n, c, a0, a1, a2, dy0, dy1,
+                                          dy2, x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area,
+                                          fid)
+                    if inside >> LANES:
+                        return 1
+                else:
+                    inside = _lanes(dp + c * 8, gp + c * 4, n, c, a0, a1, a2, dy0, dy1, dy2,
+                                    x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
                 entered = entered or inside != 0
                 if entered and bounded and not (inside >> n) & 1:
                     break  # the run of centres inside ended in these columns
@@ -383,9 +432,11 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
                 continue
             d = depth[r - r_lo, c - c_lo]
             if z < d or (z == d and fid < ids[r - r_lo, c - c_lo]):
+                if probe:
+                    return 1
                 depth[r - r_lo, c - c_lo] = z
                 ids[r - r_lo, c - c_lo] = fid
-    return (rmax - rmin + 1) * (cmax - cmin + 1)
+    return 0 if probe else (rmax - rmin + 1) * (cmax - cmin + 1)
 
 
 #: Relative rounding error of a double (2^-52).

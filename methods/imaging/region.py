@@ -21,7 +21,7 @@ from methods.imaging.counters import (
     cycles,
 )
 from methods.imaging.entropy import _entropy_change
-from methods.imaging.raster import behind, scan_row, shade_pixel
+from methods.imaging.raster import behind, scan_row, shade_pixel, wins_any
 from methods.imaging.rows import (
     _light,
     _pos,
@@ -528,8 +528,33 @@ def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
             _grow(rect, box)
     if rect[0] > rect[1] or rect[2] > rect[3]:
         return
+    if img.ent.on and _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
+        return
     iws.vcost[h] = _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles,
                                 iws, wfrom, wto, npairs, atick, False, background)
+
+
+@njit(cache=True)
+def _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
+    """Whether collapsing ``u`` into ``v`` leaves view ``h`` as it is: no pixel shows a
+    face whose geometry or shading changes (``iws.aff[:ns]``; the entropy's per-face
+    pixel counts say so at once) and no changed face, as after the collapse, wins a
+    pixel of ``rect`` (probed on the view's own depths and faces, so nothing is
+    copied)."""
+    counts, aff, t = img.ent.counts, iws.aff, iws.t
+    for i in range(ns):
+        if counts[h, aff[i] + 1] != 0:
+            return False
+    c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
+    depth, ids = img.DZ[h, r0:, c0:], img.IDS[h, r0:, c0:]  # indexed from the corner
+    for i in range(na):
+        f = aff[i]
+        if _has(F, f, u) and _has(F, f, v):
+            continue  # removed by the collapse
+        fill_screen(t, 0, f, h, u, v, sp, img.S, F)
+        if wins_any(t, 0, f, c0, c1, r0, r1, img.cull[h], depth, ids):
+            return False
+    return True
 
 
 @njit(cache=True)
