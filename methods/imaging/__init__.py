@@ -51,6 +51,9 @@ ids inside its rectangles, compared with ``IDS``, give the count changes; only t
 whose count changes enter S and A, so ΔH_v costs one pass over the rectangle
 (:func:`_entropy_change`), and a commit updates the counts from the same pixels. With
 ``weight`` 0 (entropy alone) no pixel is shaded: only ``IDS`` and ``DZ`` are kept.
+The counts also tell a view where no changed face is seen; if no changed face, as
+after the collapse, wins a pixel of the rectangle either (a scan that writes nothing,
+:func:`~methods.imaging.raster.wins_any`), the view is left out, nothing copied.
 
 Tile index versus the paper's row/column buckets: the paper keeps a hash table of
 triangles per pixel row and column and intersects the unions over the rectangle with
