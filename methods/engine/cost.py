@@ -40,7 +40,8 @@ from methods.engine.wedges import (
     _wedge_targets,
     corner_wedges,
 )
-from methods.imaging.region import image_cost
+from methods.imaging.entropy import fan_pixels
+from methods.imaging.region import image_cost, rank_views
 from metrics.shading import BACKGROUND
 
 
@@ -153,8 +154,7 @@ def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
         cb = _cost_at(P[b], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
                       n_bnd, link, n_link, l2)
         if rendered:
-            ca += _view_cost(b, a, P[a], mesh, rules, terms, scratch, images)
-            cb += _view_cost(a, b, P[b], mesh, rules, terms, scratch, images)
+            ca, cb = _both_ways(a, b, ca, cb, mesh, rules, terms, scratch, images)
         keep = a if ca < cb else b
         out_p[:] = P[keep]
         return min(ca, cb) + canny, keep
@@ -173,28 +173,65 @@ def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
                     n_bnd, link, n_link, l2) + canny
     if rendered:
         cost += _view_cost(a if keep == b else b, keep, out_p, mesh, rules, terms, scratch,
-                           images)
+                           images, np.inf)
     return cost, keep
 
 
+@njit(cache=True, inline="always")
+def _both_ways(a, b, ca, cb, mesh, rules, terms, scratch, images):
+    """``ca`` and ``cb`` plus the rendered cost of keeping a (removing b) and of keeping
+    b. The way that redraws fewer pixels goes first; the other stops once it is sure to
+    cost more (its cost is then inf: the verdict, the cheaper cost and the placement are
+    those of rendering all its views), taking first the views where the first way
+    changed the most."""
+    P, vhead, cnext, falive, ent = mesh.P, mesh.vhead, mesh.cnext, mesh.falive, images.img.ent
+    if fan_pixels(b, vhead, cnext, falive, ent) <= fan_pixels(a, vhead, cnext, falive, ent):
+        ca += _view_cost(b, a, P[a], mesh, rules, terms, scratch, images, np.inf)
+        bound = _losing_sum(ca, cb, rules.weights)
+        if bound < np.inf:
+            rank_views(images.iws)
+        cb += _view_cost(a, b, P[b], mesh, rules, terms, scratch, images, bound)
+    else:
+        cb += _view_cost(a, b, P[b], mesh, rules, terms, scratch, images, np.inf)
+        bound = _losing_sum(cb, ca, rules.weights)
+        if bound < np.inf:
+            rank_views(images.iws)
+        ca += _view_cost(b, a, P[a], mesh, rules, terms, scratch, images, bound)
+    return ca, cb
+
+
+@njit(cache=True, inline="always")
+def _losing_sum(ca, base, weights):
+    """The sum of |dH| past which a cost ``base`` + ``weights.entropy`` × that sum is
+    sure to exceed ``ca``, with a margin far above rounding (so the sum's order does
+    not matter); inf when the rendered cost is not such a sum (an image term's view
+    changes can be negative)."""
+    if weights.image != 0.0 or not weights.entropy > 0.0:
+        return np.inf
+    slack = 1e-9 * (abs(ca) + abs(base))
+    return (ca - base + slack) / weights.entropy * (1.0 + 1e-9)
+
+
 @njit(cache=True)
-def _view_cost(u, v, p, mesh, rules, terms, scratch, images):
+def _view_cost(u, v, p, mesh, rules, terms, scratch, images, bound):
     """The rendered cost terms of collapsing u into v at p, from one re-render of the
     affected rectangles: ``weights.image`` × equation 8 of Lindstrom & Turk 2000 plus
     ``weights.entropy`` × the sum over views of |change of the viewpoint entropy|
     (González et al. 2008, §3), which :func:`methods.imaging.region.image_cost` leaves in
-    the image state."""
+    the image state; inf once that sum passes ``bound`` (then not all views are
+    rendered)."""
     weights = rules.weights
-    cost = weights.image * _image_term(u, v, p, mesh, rules, terms, scratch, images)
+    cost = weights.image * _image_term(u, v, p, mesh, rules, terms, scratch, images, bound)
     if weights.entropy != 0.0:
         cost += weights.entropy * images.img.ent.delta[0]
     return cost
 
 
 @njit(cache=True)
-def _image_term(u, v, p, mesh, rules, terms, scratch, images):
+def _image_term(u, v, p, mesh, rules, terms, scratch, images, bound):
     """Equation 8 of Lindstrom & Turk 2000 for collapsing u into v at p, with the
-    texture coordinates the collapse would give (methods.imaging.region.image_cost)."""
+    texture coordinates the collapse would give (methods.imaging.region.image_cost,
+    which stops once the views' |dH| passes ``bound``)."""
     P, F, FW, uv, falive, vhead, cnext = (mesh.P, mesh.F, mesh.FW, mesh.uv, mesh.falive,
                                           mesh.vhead, mesh.cnext)
     wfrom, wto, efaces = scratch.wmap_from, scratch.wmap_to, scratch.efaces
@@ -214,7 +251,8 @@ def _image_term(u, v, p, mesh, rules, terms, scratch, images):
                     new_uv[i, d] = (1.0 - t_edge) * uv[wfrom[i], d] + t_edge * uv[wto[i], d]
             nt = npairs
     return image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, images.img, images.tiles,
-                      images.iws, wfrom, wto, npairs, targets, nt, new_uv, float(BACKGROUND))
+                      images.iws, wfrom, wto, npairs, targets, nt, new_uv, float(BACKGROUND),
+                      bound)
 
 
 @njit(cache=True)

@@ -90,3 +90,21 @@ def _entropy_change(h, rect, ids, IDS, ent, commit):
         SUM[h] = s
         TOT[h] = a
     return dh
+
+
+@njit(cache=True)
+def fan_pixels(x, vhead, cnext, falive, ent):
+    """The pixels the live faces around vertex ``x`` cover, over every view (0 without
+    the entropy's counts): how much of the images a collapse removing ``x`` redraws."""
+    if not ent.on:
+        return 0
+    counts = ent.counts
+    total = 0
+    c = vhead[x]
+    while c != -1:
+        f = c // 3
+        if falive[f]:
+            for h in range(counts.shape[0]):
+                total += counts[h, f + 1]
+        c = cnext[c]
+    return total

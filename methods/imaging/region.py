@@ -42,11 +42,15 @@ from methods.imaging.share import (
     JOB_V,
     KIND_COMMIT,
     KIND_COST,
+    add_partial,
+    clear_partials,
     done,
     hand_out,
     next_job,
     next_view,
+    partials_sum,
     publish,
+    stop_handing,
     wait,
 )
 from methods.imaging.tiles import TILE, _gather, _tiles_add
@@ -347,12 +351,18 @@ def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, 
 
 @njit(cache=True)
 def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfrom, wto,
-               npairs, targets, nt, target_uv, background):
+               npairs, targets, nt, target_uv, background, bound):
     """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
     squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
     whose texture coordinates become ``target_uv[:nt]``. The sum of |dH| over the views
     goes to ``img.ent.delta[0]``. The set-up is this thread's; the views are shared
-    with the run's helpers, if any (:mod:`methods.imaging.share`)."""
+    with the run's helpers, if any (:mod:`methods.imaging.share`), and taken in the
+    order ``iws.vorder``.
+
+    ``bound``: once the views done sum to more |dH| than this, the others are not
+    rendered and ``img.ent.delta[0]`` is inf (the caller knows the collapse loses
+    whatever they give; the returned cost then covers the views done). ``np.inf``:
+    every view is rendered."""
     eyes, shading, stats = img.eyes, img.shading, img.stats
     mark, tick, vslot, ov_light, wslot, new_uv = (iws.mark, iws.tick, iws.vslot, iws.ov_light,
                                                   iws.wslot, iws.new_uv)
@@ -395,11 +405,16 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     for i in range(na):
         gmark[aff[i]] = atick
     stats[STAT_SETUP_CYCLES] += cycles() - setup_start
-    job = iws.vjob
+    job, part = iws.vjob, iws.vpart
+    helpers = job[JOB_HELPERS]
     iws.vp[0], iws.vp[1], iws.vp[2] = p[0], p[1], p[2]
+    iws.vbound[0] = bound
+    for h in range(n_views):  # a view left undone adds nothing
+        iws.vcost[h] = iws.vdh[h] = 0.0
+    clear_partials(part, helpers)
     publish(job, KIND_COST, u, v, na, ns, atick, npairs)
-    g = hand_out(job) if job[JOB_HELPERS] > 0 else 0
-    _take_views(P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background)
+    g = hand_out(job) if helpers > 0 else 0
+    _take_views(0, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background)
     if g > 0:
         wait(job, g)
     # the views' results, summed in view order whichever thread drew which
@@ -407,12 +422,31 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     for h in range(n_views):
         cost += iws.vcost[h]
         dh += iws.vdh[h]
+    if partials_sum(part, helpers) > bound:
+        dh = np.inf
     img.ent.delta[0] = dh
     for i in range(nr):
         vslot[ring[i]] = -1
     for i in range(nt):
         wslot[targets[i]] = -1
     return cost
+
+
+@njit(cache=True)
+def rank_views(iws):
+    """Order ``iws.vorder`` by the |dH| the last evaluation left in ``iws.vdh``, largest
+    first (ties by view): the next evaluation of a collapse much like it then passes
+    its bound, if it does, after the fewest views."""
+    order, vdh = iws.vorder, iws.vdh
+    for k in range(order.shape[0]):
+        order[k] = k
+    for k in range(1, order.shape[0]):
+        h = order[k]
+        j = k
+        while j > 0 and vdh[order[j - 1]] < vdh[h]:
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = h
 
 
 @njit(cache=True)
@@ -501,7 +535,7 @@ def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
     publish(job, KIND_COMMIT, -1, -1, na, na, iws.tick[0], 0)
     g = hand_out(job) if job[JOB_HELPERS] > 0 else 0
     # a commit merges no wedges (npairs 0): any int64 arrays stand for wfrom and wto
-    _take_views(P, F, FW, uv, falive, img, tiles, iws, iws.cand, iws.cand, background)
+    _take_views(0, P, F, FW, uv, falive, img, tiles, iws, iws.cand, iws.cand, background)
     if g > 0:
         wait(job, g)
 
@@ -558,23 +592,29 @@ def _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
 
 
 @njit(cache=True)
-def _take_views(P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background):
-    """Render the published job's views, one at a time, until none is left; returns how
-    many this thread took."""
+def _take_views(row, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background):
+    """Render the published job's views, one at a time, until none is left (a cost's
+    in the order ``iws.vorder``, until their |dH| passes ``iws.vbound``); returns how
+    many this thread (``row``: 0 the evaluating one, 1, 2, ... the helpers) took."""
     job = iws.vjob
     kind, u, v, na, ns = job[JOB_KIND], job[JOB_U], job[JOB_V], job[JOB_NA], job[JOB_NS]
     atick, npairs, p = job[JOB_ATICK], job[JOB_NPAIRS], iws.vp
+    helpers, bound = job[JOB_HELPERS], iws.vbound[0]
     n_views = img.Y.shape[0]
     taken = 0
     while True:
-        h = next_view(job)
-        if h >= n_views:
+        k = next_view(job)
+        if k >= n_views:
             return taken
         taken += 1
         if kind == KIND_COST:
+            h = iws.vorder[k]
             _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
                        wfrom, wto, npairs, background)
+            if add_partial(iws.vpart, row, iws.vdh[h], helpers) > bound:
+                stop_handing(job, n_views)  # the other views cannot change the verdict
             continue
+        h = k
         rect = iws.rects[h]
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue
@@ -594,8 +634,8 @@ def serve_views(row, tiles_version, P, F, FW, uv, falive, img, tiles, iws, wfrom
         if g < 0:
             return g
         start = cycles()
-        img.stats[STAT_HELPER_VIEWS] += _take_views(P, F, FW, uv, falive, img, tiles, iws,
-                                                    wfrom, wto, background)
+        img.stats[STAT_HELPER_VIEWS] += _take_views(row, P, F, FW, uv, falive, img, tiles,
+                                                    iws, wfrom, wto, background)
         # its working cycles join the run's, so that the image counters' shares of them
         # stay shares of all the work done (as the first pass's do)
         img.stats[STAT_RUN_CYCLES] += cycles() - start

@@ -26,6 +26,9 @@ MAX_HELPERS = 63
 #: ``vjob``'s size: the job's words, the view counter, then one group per helper.
 JOB_SIZE = (2 + MAX_HELPERS) * LINE
 
+#: ``vpart``'s size: each thread's running sum of its views' |dH| (thread ``row`` at
+#: ``row * LINE``), a group apart.
+PART_SIZE = (1 + MAX_HELPERS) * LINE
 #: The job's words: the run's helpers (0: none), the generation last handed out, the
 #: tile index's version, 1 once a helper failed, the kind of job, and its arguments.
 JOB_HELPERS = 0
@@ -68,6 +71,11 @@ def finished(row):
     return (1 + row) * LINE + LINE // 2
 
 
+def new_partials():
+    """A ``vpart``: every thread's running sum 0."""
+    return np.zeros(PART_SIZE)
+
+
 @njit(cache=True)
 def publish(job, kind, u, v, na, ns, atick, npairs):
     """Write a job's arguments and reset the view counter (before :func:`hand_out`)."""
@@ -90,6 +98,38 @@ def hand_out(job):
 def next_view(job):
     """The next view no thread has taken (the caller stops at the view count)."""
     return fetch_add(job, JOB_NEXT, 1)
+
+
+@njit(cache=True, inline="always")
+def stop_handing(job, n_views):
+    """Hand out no more of the job's ``n_views`` views (those taken are still done)."""
+    store_release(job, JOB_NEXT, n_views)
+
+
+@njit(cache=True, inline="always")
+def clear_partials(part, helpers):
+    """Set the running sums in ``part`` of all ``helpers + 1`` threads to 0 (before
+    :func:`hand_out`)."""
+    for row in range(helpers + 1):
+        part[row * LINE] = 0.0
+
+
+@njit(cache=True, inline="always")
+def partials_sum(part, helpers):
+    """The sum of all ``helpers + 1`` threads' running sums in ``part`` (another
+    thread's as last seen, so no more than it is while it still adds)."""
+    total = 0.0
+    for row in range(helpers + 1):
+        total += part[row * LINE]
+    return total
+
+
+@njit(cache=True, inline="always")
+def add_partial(part, row, x, helpers):
+    """Add ``x`` to thread ``row``'s running sum in ``part``; returns
+    :func:`partials_sum`."""
+    part[row * LINE] += x
+    return partials_sum(part, helpers)
 
 
 @njit(cache=True)

@@ -22,7 +22,7 @@ from methods.imaging.rows import (
     row_box,
     vertex_normal,
 )
-from methods.imaging.share import new_job
+from methods.imaging.share import new_job, new_partials
 from methods.imaging.tiles import TILE, Tiles, build_tiles
 from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, SHADINGS
 
@@ -59,10 +59,14 @@ Entropy = namedtuple("Entropy", "counts sums totals dcnt emark touched on backgr
 #: (H, 2) per image row the first and last column of its open holes, each view's
 #: results ``vcost`` and ``vdh`` (V,), and the job whose views the threads share
 #: (``vjob``, :func:`methods.imaging.share.new_job`; the kept vertex's position ``vp``
-#: (3,)).
+#: (3,); the order the views are taken in ``vorder`` (V,), each thread's running sum of
+#: its views' |dH| ``vpart`` (:func:`methods.imaging.share.new_partials`) and the sum
+#: past which the rest of the views cannot matter ``vbound`` (1,), see
+#: :func:`methods.imaging.region.image_cost`).
 ImageScratch = namedtuple("ImageScratch", "mark tick cand t depth ids vslot ov_light wslot "
                                           "new_uv ring rects buf n3 sp box aff amark gmark "
-                                          "rowof rowmark hmark holes spans vcost vdh vjob vp")
+                                          "rowof rowmark hmark holes spans vcost vdh vjob vp "
+                                          "vorder vpart vbound")
 
 
 def _workspace(n_views, nv, m, n_wedges, height, width):
@@ -79,7 +83,8 @@ def _workspace(n_views, nv, m, n_wedges, height, width):
         np.zeros(m, np.int64), np.zeros(m, np.int64),
         np.zeros(-(-height // TILE) * -(-width // TILE), np.int64),
         np.zeros((height * width, 2), np.int64), np.zeros((height, 2), np.int64),
-        np.zeros(n_views), np.zeros(n_views), new_job(), np.zeros(3))
+        np.zeros(n_views), np.zeros(n_views), new_job(), np.zeros(3),
+        np.arange(n_views, dtype=np.int64), new_partials(), np.full(1, np.inf))
 
 
 def entropy_state(n_views, m, on=False, background=True, shade=True):
