@@ -54,6 +54,9 @@ whose count changes enter S and A, so ΔH_v costs one pass over the rectangle
 The counts also tell a view where no changed face is seen; if no changed face, as
 after the collapse, wins a pixel of the rectangle either (a scan that writes nothing,
 :func:`~methods.imaging.raster.wins_any`), the view is left out, nothing copied.
+And since |dH| is never negative, :func:`image_cost` can stop once the views done sum
+past a ``bound``: the engine tries a half-edge collapse both ways, and the second way
+stops as soon as it is sure to cost more than the first.
 
 Tile index versus the paper's row/column buckets: the paper keeps a hash table of
 triangles per pixel row and column and intersects the unions over the rectangle with
