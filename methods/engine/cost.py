@@ -180,24 +180,27 @@ def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
 @njit(cache=True, inline="always")
 def _both_ways(a, b, ca, cb, mesh, rules, terms, scratch, images):
     """``ca`` and ``cb`` plus the rendered cost of keeping a (removing b) and of keeping
-    b. The way that redraws fewer pixels goes first; the other stops once it is sure to
-    cost more (its cost is then inf: the verdict, the cheaper cost and the placement are
-    those of rendering all its views), taking first the views where the first way
-    changed the most."""
-    P, vhead, cnext, falive, ent = mesh.P, mesh.vhead, mesh.cnext, mesh.falive, images.img.ent
+    b. The way that redraws fewer pixels goes first (:func:`_first_then_other`)."""
+    vhead, cnext, falive, ent = mesh.vhead, mesh.cnext, mesh.falive, images.img.ent
     if fan_pixels(b, vhead, cnext, falive, ent) <= fan_pixels(a, vhead, cnext, falive, ent):
-        ca += _view_cost(b, a, P[a], mesh, rules, terms, scratch, images, np.inf)
-        bound = _losing_sum(ca, cb, rules.weights)
-        if bound < np.inf:
-            rank_views(images.iws)
-        cb += _view_cost(a, b, P[b], mesh, rules, terms, scratch, images, bound)
-    else:
-        cb += _view_cost(a, b, P[b], mesh, rules, terms, scratch, images, np.inf)
-        bound = _losing_sum(cb, ca, rules.weights)
-        if bound < np.inf:
-            rank_views(images.iws)
-        ca += _view_cost(b, a, P[a], mesh, rules, terms, scratch, images, bound)
+        return _first_then_other(b, a, ca, cb, mesh, rules, terms, scratch, images)
+    cb, ca = _first_then_other(a, b, cb, ca, mesh, rules, terms, scratch, images)
     return ca, cb
+
+
+@njit(cache=True, inline="always")
+def _first_then_other(u, v, first, other, mesh, rules, terms, scratch, images):
+    """``first`` plus the rendered cost of collapsing u into v, and ``other`` plus that
+    of collapsing v into u; the latter stops once it is sure to cost more (it is then
+    inf: the verdict, the cheaper cost and the placement are those of rendering all its
+    views), taking first the views where the first way changed the most."""
+    P = mesh.P
+    first += _view_cost(u, v, P[v], mesh, rules, terms, scratch, images, np.inf)
+    bound = _losing_sum(first, other, rules.weights)
+    if bound < np.inf:
+        rank_views(images.iws)
+    other += _view_cost(v, u, P[u], mesh, rules, terms, scratch, images, bound)
+    return first, other
 
 
 @njit(cache=True, inline="always")

@@ -545,10 +545,10 @@ def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
                wto, npairs, background):
     """View ``h``'s part of :func:`image_cost`: its rectangle re-rendered as after the
     collapse; the change of the squared error goes to ``iws.vcost[h]``, |dH| to
-    ``iws.vdh[h]`` (0 for a view the collapse does not touch)."""
+    ``iws.vdh[h]`` (left at the 0 :func:`image_cost` put there for a view the collapse
+    does not touch)."""
     S, fbox, sp, t, box, aff = img.S, img.fbox, iws.sp, iws.t, iws.box, iws.aff
     height, width = img.Y.shape[1], img.Y.shape[2]
-    iws.vcost[h] = iws.vdh[h] = 0.0
     project(img.M, h, p, width, height, sp)
     rect = iws.rects[h]
     rect[0], rect[1], rect[2], rect[3] = 0, -1, 0, -1
