@@ -82,6 +82,13 @@ def _has(F, f, x):
     return F[f, 0] == x or F[f, 1] == x or F[f, 2] == x
 
 
+@njit(cache=True, inline="always")
+def _removed(F, f, u, v):
+    """Whether collapsing ``u`` into ``v`` removes face ``f`` (it holds both; never
+    with ``u = -1``, the mesh as it is)."""
+    return u >= 0 and _has(F, f, u) and _has(F, f, v)
+
+
 @njit(cache=True)
 def _add_to_ring(x, ring, vslot, nr):
     """Append vertex ``x`` to the ring of vertices whose normal changes (slot ``nr``)."""
@@ -216,8 +223,8 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
     n = 0
     for i in range(na):
         f = aff[i]
-        if u >= 0 and _has(F, f, u) and _has(F, f, v):
-            continue  # removed by the collapse
+        if _removed(F, f, u, v):
+            continue
         cand[n] = f
         rowof[f] = n
         fill_screen(t, n, f, h, u, v, sp, img.S, F)
@@ -556,7 +563,7 @@ def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
         _grow(rect, fbox[h, aff[i]])
     for i in range(na):
         f = aff[i]
-        if not (_has(F, f, u) and _has(F, f, v)):
+        if not _removed(F, f, u, v):
             fill_screen(t, 0, f, h, u, v, sp, S, F)
             row_box(t, 0, width, height, box)
             _grow(rect, box)
@@ -583,8 +590,8 @@ def _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
     depth, ids = img.DZ[h, r0:, c0:], img.IDS[h, r0:, c0:]  # indexed from the corner
     for i in range(na):
         f = aff[i]
-        if _has(F, f, u) and _has(F, f, v):
-            continue  # removed by the collapse
+        if _removed(F, f, u, v):
+            continue
         fill_screen(t, 0, f, h, u, v, sp, img.S, F)
         if wins_any(t, 0, f, c0, c1, r0, r1, img.cull[h], depth, ids):
             return False
