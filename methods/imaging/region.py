@@ -28,6 +28,7 @@ from methods.imaging.rows import (
     fill_screen,
     fill_shading,
     project,
+    removed_by,
     row_box,
     vertex_normal,
 )
@@ -75,18 +76,6 @@ def _grow(rect, box):
     else:
         rect[0], rect[1] = min(rect[0], box[0]), max(rect[1], box[1])
         rect[2], rect[3] = min(rect[2], box[2]), max(rect[3], box[3])
-
-
-@njit(cache=True)
-def _has(F, f, x):
-    return F[f, 0] == x or F[f, 1] == x or F[f, 2] == x
-
-
-@njit(cache=True, inline="always")
-def _removed(F, f, u, v):
-    """Whether collapsing ``u`` into ``v`` removes face ``f`` (it holds both; never
-    with ``u = -1``, the mesh as it is)."""
-    return u >= 0 and _has(F, f, u) and _has(F, f, v)
 
 
 @njit(cache=True)
@@ -223,7 +212,7 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
     n = 0
     for i in range(na):
         f = aff[i]
-        if _removed(F, f, u, v):
+        if removed_by(F, f, u, v):
             continue
         cand[n] = f
         rowof[f] = n
@@ -563,7 +552,7 @@ def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
         _grow(rect, fbox[h, aff[i]])
     for i in range(na):
         f = aff[i]
-        if not _removed(F, f, u, v):
+        if not removed_by(F, f, u, v):
             fill_screen(t, 0, f, h, u, v, sp, S, F)
             row_box(t, 0, width, height, box)
             _grow(rect, box)
@@ -590,7 +579,7 @@ def _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
     depth, ids = img.DZ[h, r0:, c0:], img.IDS[h, r0:, c0:]  # indexed from the corner
     for i in range(na):
         f = aff[i]
-        if _removed(F, f, u, v):
+        if removed_by(F, f, u, v):
             continue
         fill_screen(t, 0, f, h, u, v, sp, img.S, F)
         if wins_any(t, 0, f, c0, c1, r0, r1, img.cull[h], depth, ids):

@@ -13,6 +13,18 @@ from methods.imaging.raster import T_L, T_N, T_P, T_UV, T_W, T_X, T_Y, T_Z
 NORMAL_FACES_CAP = 1024
 
 
+@njit(cache=True, inline="always")
+def _has(F, f, x):
+    return F[f, 0] == x or F[f, 1] == x or F[f, 2] == x
+
+
+@njit(cache=True, inline="always")
+def removed_by(F, f, u, v):
+    """Whether collapsing ``u`` into ``v`` removes face ``f`` (it holds both; never
+    with ``u = -1``, the mesh as it is)."""
+    return u >= 0 and _has(F, f, u) and _has(F, f, v)
+
+
 @njit(cache=True)
 def project(M, h, p, width, height, out):
     """Screen (x, y pixels with y down, NDC z, clip w) of point ``p`` in view ``h``."""
@@ -86,15 +98,12 @@ def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
         c = vhead[y]
         while c != -1:
             f = c // 3
-            if falive[f]:
-                edge = u >= 0 and ((F[f, 0] == u or F[f, 1] == u or F[f, 2] == u) and
-                                   (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v))
-                if not edge:
-                    if n == buf.shape[0]:
-                        raise ValueError("a vertex has more faces than NORMAL_FACES_CAP "
-                                         "(methods.imaging.rows)")
-                    buf[n] = f
-                    n += 1
+            if falive[f] and not removed_by(F, f, u, v):
+                if n == buf.shape[0]:
+                    raise ValueError("a vertex has more faces than NORMAL_FACES_CAP "
+                                     "(methods.imaging.rows)")
+                buf[n] = f
+                n += 1
             c = cnext[c]
     _sort_small(buf, n)
     sx = sy = sz = 0.0
