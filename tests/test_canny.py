@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.mesh import Mesh
 from methods.engine import canny
@@ -217,6 +219,58 @@ def test_gradient_magnitude_is_the_one_canny_thresholds():
     smoothed, _ = _canny._preprocess(gray, None, 0.75, "nearest", 0.0)
     i, j = ndi.sobel(smoothed, axis=0), ndi.sobel(smoothed, axis=1)
     np.testing.assert_array_equal(canny._gradient_magnitude(gray, 0.75), np.sqrt(i * i + j * j))
+
+
+def _canny_at_relative_thresholds(texture, sigma, low, high):
+    """The oracle: ``skimage.feature.canny`` itself, its thresholds taken relative to
+    the maximum of the magnitude recomputed here from the smoothed image's Sobels."""
+    from scipy import ndimage as ndi
+    from skimage.feature import canny as skimage_canny
+
+    gray = canny._texture_luminance(texture)
+    smoothed = ndi.gaussian_filter(gray, sigma, mode="nearest", truncate=4.0)
+    i, j = ndi.sobel(smoothed, axis=0), ndi.sobel(smoothed, axis=1)
+    top = float(np.sqrt(i * i + j * j).max())
+    if top < 1e-9:
+        return np.zeros(gray.shape, bool)
+    return skimage_canny(gray, sigma=sigma, low_threshold=low * top,
+                         high_threshold=high * top, mode="nearest")
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(1, 30), st.integers(1, 30), st.integers(1, 4), st.integers(0, 2**32 - 1),
+       st.sampled_from([0.0, 0.75, 2.0]), st.floats(0, 1), st.floats(0, 1))
+def test_texture_borders_are_canny_at_the_relative_thresholds(h, w, block, seed, sigma, a, b):
+    # The gradients are computed once and passed to scikit-image's own suppression;
+    # the result is canny's, bit for bit, over noise and flat blocks (long ridges, so
+    # hysteresis has groups to keep and to drop), with and without that shortcut.
+    rng = np.random.default_rng(seed)
+    texture = np.kron(rng.integers(0, 256, (h, w, 3)),
+                      np.ones((block, block, 1))).astype(np.uint8)
+    low, high = min(a, b), max(a, b)
+    expected = _canny_at_relative_thresholds(texture, sigma, low, high)
+    borders = texture_borders(texture, sigma, low, high)
+    assert borders.dtype == bool
+    np.testing.assert_array_equal(borders, expected)
+    shortcut = canny._skimage_suppression
+    try:
+        canny._skimage_suppression = lambda: None  # a release without the private step
+        np.testing.assert_array_equal(texture_borders(texture, sigma, low, high), expected)
+    finally:
+        canny._skimage_suppression = shortcut
+
+
+def test_hysteresis_keeps_the_groups_that_reach_the_high_threshold():
+    ridges = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                       [0.0, 0.5, 0.0, 0.0, 0.5, 0.0],
+                       [0.0, 0.0, 0.9, 0.0, 0.0, 0.5],
+                       [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]])
+    # (1, 1) touches (2, 2) diagonally and is kept with it; (1, 4) and (2, 5) reach 0.5 only
+    expected = np.zeros(ridges.shape, bool)
+    expected[1, 1] = expected[2, 2] = True
+    np.testing.assert_array_equal(canny._hysteresis(ridges, 0.8), expected)
+    np.testing.assert_array_equal(canny._hysteresis(ridges, 0.5), ridges > 0)
+    assert not canny._hysteresis(np.zeros((3, 3)), 0.5).any()
 
 
 def test_high_threshold_is_relative_to_the_maximum_magnitude():

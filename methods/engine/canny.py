@@ -115,21 +115,32 @@ def texture_borders(texture: np.ndarray, sigma: float = DEFAULT_SIGMA,
     canny thresholds -- luminance on 0..255 as float64 (canny does not rescale float
     input), smoothed by ``scipy.ndimage.gaussian_filter`` with the same sigma, boundary
     mode and truncation, then ``sqrt(i**2 + j**2)`` of ``scipy.ndimage.sobel`` along
-    both axes, in canny's order of operations -- and passes ``low * max`` and ``high * max``. The borders are therefore invariant to the
-    texture's contrast. Canny's smoothing and derivative filters differ from MATLAB's
-    (a Gaussian then Sobel rather than derivative-of-Gaussian kernels), so borders match
-    the paper's in spirit, not pixel for pixel. scikit-image passes the low threshold
-    through a 32-bit float, so it is exact to about 1e-7 relative.
+    both axes, in canny's order of operations -- and thresholds at ``low * max`` and
+    ``high * max``. The gradients are computed once and handed to scikit-image's own
+    non-maximum suppression; where that private function is missing (another release),
+    ``skimage.feature.canny`` runs on the same thresholds and computes them again. The
+    borders are therefore invariant to the texture's contrast. Canny's smoothing and
+    derivative filters differ from MATLAB's (a Gaussian then Sobel rather than
+    derivative-of-Gaussian kernels), so borders match the paper's in spirit, not pixel
+    for pixel. scikit-image passes the low threshold through a 32-bit float, so it is
+    exact to about 1e-7 relative.
     """
-    from skimage.feature import canny
-
     _check_canny_params(sigma, low, high)
     gray = _texture_luminance(texture)
-    max_magnitude = float(_gradient_magnitude(gray, sigma).max())
+    isobel, jsobel, magnitude = _gradients(gray, sigma)
+    max_magnitude = float(magnitude.max())
     if max_magnitude < _FLAT_GRADIENT:
         return np.zeros(gray.shape, bool)
-    return canny(gray, sigma=sigma, low_threshold=low * max_magnitude,
-                 high_threshold=high * max_magnitude, mode=_SMOOTHING_MODE)
+    suppress = _skimage_suppression()
+    if suppress is None:
+        from skimage.feature import canny
+
+        return canny(gray, sigma=sigma, low_threshold=low * max_magnitude,
+                     high_threshold=high * max_magnitude, mode=_SMOOTHING_MODE)
+    inside = np.zeros(gray.shape, bool)  # the outer ring is never a border
+    inside[1:-1, 1:-1] = True
+    ridges = suppress(isobel, jsobel, magnitude, inside, low * max_magnitude)
+    return _hysteresis(ridges, high * max_magnitude)
 
 
 def segment_pixels(uv0, uv1, shape: tuple[int, int]) -> np.ndarray:
@@ -517,8 +528,9 @@ def _texture_luminance(texture) -> np.ndarray:
     return luminance(texture[..., :3])
 
 
-def _gradient_magnitude(gray: np.ndarray, sigma: float) -> np.ndarray:
-    """The gradient magnitude ``skimage.feature.canny`` thresholds, (h, w) float64.
+def _gradients(gray: np.ndarray, sigma: float):
+    """The Sobel derivatives along rows and columns and the gradient magnitude that
+    ``skimage.feature.canny`` computes, each (h, w) float64.
 
     Same operations in the same order as canny (no mask, mode "nearest"): Gaussian
     smoothing, Sobel along both axes, sqrt(i^2 + j^2), so the values are bit-identical.
@@ -529,7 +541,35 @@ def _gradient_magnitude(gray: np.ndarray, sigma: float) -> np.ndarray:
     isobel = ndi.sobel(smoothed, axis=0)
     magnitude = isobel * isobel
     magnitude += jsobel * jsobel
-    return np.sqrt(magnitude)
+    return isobel, jsobel, np.sqrt(magnitude)
+
+
+def _gradient_magnitude(gray: np.ndarray, sigma: float) -> np.ndarray:
+    """The gradient magnitude ``skimage.feature.canny`` thresholds, (h, w) float64."""
+    return _gradients(gray, sigma)[2]
+
+
+def _skimage_suppression():
+    """scikit-image's non-maximum suppression, the step of ``skimage.feature.canny``
+    after the gradients (``(isobel, jsobel, magnitude, mask, low) -> magnitude`` at the
+    ridges at or above ``low``, 0 elsewhere); None where a release does not have it."""
+    try:
+        from skimage.feature._canny_cy import _nonmaximum_suppression_bilinear
+    except ImportError:
+        return None
+    return _nonmaximum_suppression_bilinear
+
+
+def _hysteresis(ridges: np.ndarray, high: float) -> np.ndarray:
+    """The ridge pixels (``ridges > 0``) in 8-connected groups that reach ``high``."""
+    candidates = ridges > 0
+    groups, count = ndi.label(candidates, np.ones((3, 3), bool))
+    if count == 0:
+        return candidates
+    strong = np.zeros(count + 1, bool)
+    strong[groups[candidates & (ridges >= high)]] = True
+    strong[0] = False
+    return strong[groups]
 
 
 def _check_borders(borders) -> np.ndarray:
