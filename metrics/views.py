@@ -29,6 +29,7 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 __all__ = [
     "Camera",
@@ -166,8 +167,9 @@ def bounding_sphere(points) -> tuple[np.ndarray, float]:
 def _welzl(q: np.ndarray, end: int, support: list, tol: float) -> tuple[np.ndarray, float]:
     """Smallest ball of ``q[:end]`` with all of ``support`` on its boundary.
 
-    The scan over points is vectorised: find the first point outside the current ball,
-    recurse with it added to the support set, and continue the scan after it. The
+    The scan over points is compiled (:func:`_first_outside`): find the first point
+    outside the current ball, recurse with it added to the support set, and continue the
+    scan after it. The
     recursion depth is bounded by the support size (at most 4 in 3D).
     """
     center, r2 = _circumball(support)
@@ -175,13 +177,25 @@ def _welzl(q: np.ndarray, end: int, support: list, tol: float) -> tuple[np.ndarr
         return center, r2
     start = 0
     while start < end:
-        outside = np.flatnonzero(np.sum((q[start:end] - center) ** 2, axis=1) > r2 + tol)
-        if outside.size == 0:
+        j = _first_outside(q, start, end, center, r2 + tol)
+        if j < 0:
             break
-        j = start + int(outside[0])
         center, r2 = _welzl(q, j, support + [q[j]], tol)
         start = j + 1
     return center, r2
+
+
+@njit(cache=True)
+def _first_outside(q, start, end, center, limit):
+    """The first ``j`` in ``[start, end)`` whose squared distance to ``center`` exceeds
+    ``limit`` (-1: none), that distance summed as ``np.sum((q - center) ** 2, axis=1)``
+    sums it, ``(dx² + dy²) + dz²``, so the verdicts are NumPy's to the bit."""
+    c0, c1, c2 = center[0], center[1], center[2]
+    for j in range(start, end):
+        d0, d1, d2 = q[j, 0] - c0, q[j, 1] - c1, q[j, 2] - c2
+        if (d0 * d0 + d1 * d1) + d2 * d2 > limit:
+            return j
+    return -1
 
 
 def _circumball(support: list) -> tuple[np.ndarray, float]:

@@ -4,10 +4,13 @@ import itertools
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from metrics.views import (
     Camera,
     _circumball,
+    _first_outside,
     bounding_sphere,
     cameras_for,
     dodecahedron_directions,
@@ -120,6 +123,25 @@ def test_bounding_sphere_matches_brute_force(seed):
     expected_center, expected_radius = _brute_force_sphere(points)
     assert radius == pytest.approx(expected_radius, rel=1e-12)
     np.testing.assert_allclose(center, expected_center, atol=1e-9 * expected_radius)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 40), st.integers(0, 2**32 - 1), st.sampled_from([0, 1, 2]))
+def test_first_outside_is_numpys_scan(n, seed, ties):
+    # Welzl's scan: the first point whose squared distance, summed as NumPy sums
+    # ``(q - c) ** 2`` along its rows, exceeds the limit. Limits exactly at a point's
+    # distance (ties) and between them; the recursion's verdicts are NumPy's to the bit.
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-3, 3, 3)
+    center = q[rng.integers(n)] + rng.normal(size=3) * rng.uniform(0, 2)
+    squared = np.sum((q - center) ** 2, axis=1)
+    start, end = sorted(int(x) for x in rng.integers(0, n + 1, 2))
+    limit = (float(rng.choice(squared)) if ties else
+             float(np.quantile(squared, rng.uniform()))) * (1.0 if ties < 2 else 1 - 1e-16)
+    for lim in (limit, -np.inf, np.inf):
+        outside = np.flatnonzero(squared[start:end] > lim)
+        expected = start + int(outside[0]) if outside.size else -1
+        assert _first_outside(q, start, end, center, lim) == expected
 
 
 def test_bounding_sphere_encloses_and_is_deterministic(bunny):
