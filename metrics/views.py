@@ -186,6 +186,20 @@ def _welzl(q: np.ndarray, end: int, support: list, tol: float) -> tuple[np.ndarr
 
 
 @njit(cache=True)
+def _farthest_squared(points, center):
+    """The largest squared distance from ``center`` to a row of ``points``, each summed
+    as NumPy sums ``(p - center) ** 2``, ``(dx² + dy²) + dz²``."""
+    best = -np.inf
+    for j in range(points.shape[0]):
+        d0, d1, d2 = (points[j, 0] - center[0], points[j, 1] - center[1],
+                      points[j, 2] - center[2])
+        r2 = (d0 * d0 + d1 * d1) + d2 * d2
+        if j == 0 or r2 > best:
+            best = r2
+    return best
+
+
+@njit(cache=True)
 def _first_outside(q, start, end, center, limit):
     """The first ``j`` in ``[start, end)`` whose squared distance to ``center`` exceeds
     ``limit`` (-1: none), that distance summed as ``np.sum((q - center) ** 2, axis=1)``
@@ -211,11 +225,11 @@ def _circumball(support: list) -> tuple[np.ndarray, float]:
     p0 = support[0]
     if len(support) == 1:
         return p0.copy(), 0.0
-    d = np.array(support[1:]) - p0
+    points = np.array(support)
+    d = points[1:] - p0
     y = np.linalg.lstsq(2.0 * d, np.sum(d * d, axis=1), rcond=None)[0]
     center = p0 + y
-    r2 = max(float(np.sum((s - center) ** 2)) for s in support)
-    return center, r2
+    return center, _farthest_squared(points, center)
 
 
 # -- cameras ----------------------------------------------------------------------------

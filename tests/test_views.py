@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from metrics.views import (
     Camera,
     _circumball,
+    _farthest_squared,
     _first_outside,
     bounding_sphere,
     cameras_for,
@@ -127,10 +128,11 @@ def test_bounding_sphere_matches_brute_force(seed):
 
 @settings(max_examples=200, deadline=None)
 @given(st.integers(1, 40), st.integers(0, 2**32 - 1), st.sampled_from([0, 1, 2]))
-def test_first_outside_is_numpys_scan(n, seed, ties):
+def test_welzl_kernels_are_numpys_sums(n, seed, ties):
     # Welzl's scan: the first point whose squared distance, summed as NumPy sums
     # ``(q - c) ** 2`` along its rows, exceeds the limit. Limits exactly at a point's
-    # distance (ties) and between them; the recursion's verdicts are NumPy's to the bit.
+    # distance (ties) and between them; the recursion's verdicts are NumPy's to the bit,
+    # and so is the circumball's radius (the farthest of its points).
     rng = np.random.default_rng(seed)
     q = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-3, 3, 3)
     center = q[rng.integers(n)] + rng.normal(size=3) * rng.uniform(0, 2)
@@ -142,6 +144,7 @@ def test_first_outside_is_numpys_scan(n, seed, ties):
         outside = np.flatnonzero(squared[start:end] > lim)
         expected = start + int(outside[0]) if outside.size else -1
         assert _first_outside(q, start, end, center, lim) == expected
+    assert _farthest_squared(q, center) == max(float(np.sum((s - center) ** 2)) for s in q)
 
 
 def test_bounding_sphere_encloses_and_is_deterministic(bunny):
