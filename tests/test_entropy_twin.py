@@ -88,6 +88,7 @@ def test_incremental_entropy_equals_a_fresh_render(background):
     assert s["entropy_count_mismatches"] == 0  # the per-face pixel counts, exactly
     assert s["entropy_max_error"] < 1e-9
     assert "image_mismatched_pixels" not in s  # luminance is not kept in entropy mode
+    assert result.images is None  # nor returned
     # an independent render of the extracted mesh in world coordinates; rounding of the
     # projection may move a few edge pixels
     oracle = viewpoint_entropy(face_id_buffers(result.mesh, term.cameras, RES, RES),

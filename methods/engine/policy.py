@@ -204,5 +204,6 @@ class EngineResult:
     #: inspection and tests
     quadrics: np.ndarray | None = None
     vertex_alive: np.ndarray | None = None
-    #: with an image term: the maintained luminance images of the result (V, H, W)
+    #: with an image term that shades: the maintained luminance images of the result
+    #: (V, H, W); None with the entropy alone, which keeps no luminance
     images: np.ndarray | None = None

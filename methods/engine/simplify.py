@@ -35,7 +35,7 @@ from methods.engine.state import (
 from methods.engine.topology import _corner_lists, vboundary_of
 from methods.engine.views import views_shared
 from methods.engine.wedges import _face_kappa
-from methods.imaging.state import dummy_state
+from methods.imaging.state import dummy_state, keeps_luminance
 
 #: The default policy (one shared instance: a Policy is never modified).
 DEFAULT_POLICY = Policy()
@@ -137,7 +137,8 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
         stats["uvs_kept_in_tile"] = clamped
     out_log, Q, valive = _log_in_input_numbering(log, prep, arrays, tiles)
     return EngineResult(simplified, reason, stats, out_log, quadrics=Q, vertex_alive=valive,
-                        images=None if image is None else images.img.Y)
+                        images=(images.img.Y if image is not None
+                                and keeps_luminance(images.img) else None))
 
 
 #: What :func:`_prepare` hands on: positions ``P0`` (input units) and ``P`` (unit

@@ -149,22 +149,28 @@ def new_state(M, eyes, cull, Y0, shading, texture, nv, m, n_wedges, entropy=None
 
 def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background):
     """Set every per-vertex and per-face quantity of the image state ``img`` from the
-    mesh and render all views from scratch into ``Y``, ``IDS`` (the face seen at each
-    pixel, -1 empty) and ``DZ`` (its depth)."""
+    mesh and render all views from scratch into ``IDS`` (the face seen at each pixel, -1
+    empty), ``DZ`` (its depth) and, where the state keeps luminance, ``Y`` (the entropy
+    alone keeps none: ``Y`` then stays the background)."""
     # The parallel kernel takes the fields one by one: numba's parfor lowering cannot
     # trace a namedtuple taken from another one's field into a prange body.
     _full_render(img.M, img.eyes, img.cull, img.Y, img.S, img.fbox, img.vn, img.L,
                  img.shading, img.texture, img.IDS, img.DZ, iws.vslot, iws.ov_light,
                  iws.wslot, iws.new_uv, P, F, FW, uv, falive, vhead, cnext, valive,
-                 background)
+                 background, keeps_luminance(img))
+
+
+def keeps_luminance(img) -> bool:
+    """Whether the image state keeps ``Y`` up to date (not with the entropy alone)."""
+    return bool(not img.ent.on or img.ent.shade)
 
 
 @njit(cache=True, parallel=True)
 def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vslot,
                  ov_light, wslot, new_uv, P, F, FW, uv, falive, vhead, cnext, valive,
-                 background):
+                 background, shade):
     """:func:`full_render` on the image state's fields (:data:`ImageState`,
-    :data:`ImageScratch`)."""
+    :data:`ImageScratch`); ``Y`` only with ``shade``."""
     n_views, height, width = Y.shape
     nv, m = P.shape[0], F.shape[0]
     gouraud = shading.gouraud
@@ -189,12 +195,14 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
         none_i = np.full(1, -1, np.int64)
         for k in range(live.shape[0]):
             fill_screen(t, k, live[k], h, -1, -1, S[h, 0], S, F)
-            fill_shading(t, k, live[k], h, -1, -1, P[0], P, F, FW, uv, L, vslot, ov_light,
-                         wslot, new_uv, none_i, none_i, 0, shading)
+            if shade:
+                fill_shading(t, k, live[k], h, -1, -1, P[0], P, F, FW, uv, L, vslot,
+                             ov_light, wslot, new_uv, none_i, none_i, 0, shading)
             row_box(t, k, width, height, fbox[h, live[k]])
             scan_row(t, k, k, 0, width - 1, 0, height - 1, cull[h], depth, local)
-        shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], shading, texture,
-                     background, Y[h])
+        if shade:
+            shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], shading, texture,
+                         background, Y[h])
         for r in range(height):
             for c in range(width):
                 IDS[h, r, c] = live[local[r, c]] if local[r, c] >= 0 else -1
@@ -300,7 +308,7 @@ class ImageTerm:
         out["rasterizer_share"] = (counts["raster_cycles"] / counts["run_cycles"]
                                    if counts["run_cycles"] > 0 else None)
         Y, Y0 = img.Y, img.Y0
-        shaded = self.weight != 0.0 or self.entropy_weight == 0.0
+        shaded = keeps_luminance(img)
         if shaded:
             out["image_sse"] = float(np.sum((Y0 - Y) ** 2))
         entropy = self.entropy_weight != 0.0
