@@ -112,7 +112,8 @@ def dummy_state():
 
 
 def new_state(M, eyes, cull, Y0, shading, texture, nv, m, n_wedges, entropy=None):
-    """Arrays of an image state; :func:`full_render` fills them.
+    """Arrays of an image state; :func:`full_render` fills them (``Y`` only where the
+    state keeps luminance: with the entropy alone it is left unwritten, zeros).
 
     Parameters
     ----------
@@ -137,11 +138,11 @@ def new_state(M, eyes, cull, Y0, shading, texture, nv, m, n_wedges, entropy=None
     img = ImageState(
         np.ascontiguousarray(M, np.float64), np.ascontiguousarray(eyes, np.float64),
         np.ascontiguousarray(cull, np.bool_), np.ascontiguousarray(Y0, np.float64),
-        np.full(Y0.shape, 128.0), np.zeros((n_views, nv, 4)),
-        np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)), np.zeros((n_views, nv, 4)),
-        shading, np.ascontiguousarray(texture, np.uint8),
-        np.zeros(len(STAT_NAMES), np.int64), np.full(Y0.shape, -1, np.int32),
-        np.full(Y0.shape, np.inf),
+        np.full(Y0.shape, 128.0) if entropy is None or entropy[1] else np.zeros(Y0.shape),
+        np.zeros((n_views, nv, 4)), np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)),
+        np.zeros((n_views, nv, 4)), shading, np.ascontiguousarray(texture, np.uint8),
+        np.zeros(len(STAT_NAMES), np.int64), np.empty(Y0.shape, np.int32),
+        np.empty(Y0.shape),
         entropy_state(n_views, m) if entropy is None else
         entropy_state(n_views, m, True, entropy[0], entropy[1]))
     return img, _workspace(n_views, nv, m, n_wedges, height, width)
@@ -151,7 +152,7 @@ def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background
     """Set every per-vertex and per-face quantity of the image state ``img`` from the
     mesh and render all views from scratch into ``IDS`` (the face seen at each pixel, -1
     empty), ``DZ`` (its depth) and, where the state keeps luminance, ``Y`` (the entropy
-    alone keeps none: ``Y`` then stays the background)."""
+    alone keeps none, and ``Y`` is left as it is)."""
     # The parallel kernel takes the fields one by one: numba's parfor lowering cannot
     # trace a namedtuple taken from another one's field into a prange body.
     _full_render(img.M, img.eyes, img.cull, img.Y, img.S, img.fbox, img.vn, img.L,
@@ -190,8 +191,11 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
     live = np.flatnonzero(falive)
     for h in prange(n_views):
         t = np.empty((max(live.shape[0], 1), ROW))
-        depth = np.full((height, width), np.inf)
-        local = np.full((height, width), -1, np.int32)
+        # drawn in place: the view's depths, and its faces as places in ``live`` until
+        # the shading has read them
+        depth, local = DZ[h], IDS[h]
+        depth[:] = np.inf
+        local[:] = -1
         none_i = np.full(1, -1, np.int64)
         for k in range(live.shape[0]):
             fill_screen(t, k, live[k], h, -1, -1, S[h, 0], S, F)
@@ -205,8 +209,8 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
                          background, Y[h])
         for r in range(height):
             for c in range(width):
-                IDS[h, r, c] = live[local[r, c]] if local[r, c] >= 0 else -1
-                DZ[h, r, c] = depth[r, c]
+                if local[r, c] >= 0:
+                    local[r, c] = live[local[r, c]]
 
 
 @dataclass(frozen=True)
