@@ -10,6 +10,8 @@ import sys
 import numba
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from bench.harness.jobs import use_threads
 from bench.harness.runner import default_threads, usable_cores
@@ -87,6 +89,20 @@ def test_first_costs_do_not_depend_on_the_threads(shading, entropy, monkeypatch)
                     quadric_weight=0.0, memoryless_weight=0.0, boundary_weight=0.0)
     simplify.simplify_mesh(mesh, mesh.n_faces // 2, policy, image=term, max_collapses=3)
     assert seen and seen[0] > 3 * 7
+
+
+@given(st.integers(0, 3000), st.integers(1, 8))
+def test_edge_chunks_cut_the_edges_in_order_and_shrink(n, threads):
+    from methods.engine.initial import CHUNK, MIN_CHUNK, edge_chunks
+
+    chunks = edge_chunks(n, threads)
+    assert [e for lo, hi in chunks for e in range(lo, hi)] == list(range(n))
+    sizes = [hi - lo for lo, hi in chunks]
+    assert all(MIN_CHUNK <= size <= CHUNK for size in sizes[:-1])
+    assert all(0 < size <= CHUNK for size in sizes[-1:])
+    assert sizes == sorted(sizes, reverse=True)  # the small ones last, for the tail
+    if n >= 2 * CHUNK * threads:  # a large pass: full chunks first
+        assert sizes[0] == CHUNK
 
 
 def test_an_error_in_the_first_pass_stops_every_thread(monkeypatch):

@@ -32,14 +32,14 @@ from methods.engine.state import Images, new_scratch
 from methods.engine.topology import _candidate_edges, _edge_faces, _faces_area
 from methods.imaging.counters import STAT_RUN_CYCLES, cycles
 
-#: Edges per chunk at most: small enough that two threads finish together (rendered
-#: costs vary from edge to edge), large enough that taking a chunk costs nothing next to
-#: it. A smaller mesh is cut into at least :data:`CHUNKS_PER_THREAD` chunks per thread,
-#: of at least :data:`MIN_CHUNK` edges: five chunks of 256 edges on two threads leave one
-#: thread alone with the last.
+#: Edges per chunk at most: large enough that taking a chunk costs nothing next to it.
+#: The chunks shrink towards the end (guided): each takes ``1 / (GUIDED * threads)`` of
+#: the edges left, within ``[MIN_CHUNK, CHUNK]``, so that the threads finish within a
+#: small chunk of each other (rendered costs vary from edge to edge). Eight equal chunks
+#: per thread left one thread alone for 5-24 ms of the 815-face bunny's ~190 ms pass.
 CHUNK = 256
-CHUNKS_PER_THREAD = 8
-MIN_CHUNK = 16
+GUIDED = 2
+MIN_CHUNK = 4
 
 
 @njit(cache=True, nogil=True)
@@ -75,6 +75,17 @@ def edge_areas(mesh, scratch, edges):
     return areas
 
 
+def edge_chunks(n: int, threads: int) -> list[tuple[int, int]]:
+    """``[lo, hi)`` ranges cutting ``n`` edges in order, each ``1 / (GUIDED * threads)``
+    of the edges left, within ``[MIN_CHUNK, CHUNK]`` (the last may be shorter)."""
+    chunks, lo = [], 0
+    while lo < n:
+        size = min(CHUNK, max(MIN_CHUNK, -(-(n - lo) // (GUIDED * threads))))
+        chunks.append((lo, min(lo + size, n)))
+        lo += size
+    return chunks
+
+
 def own_counters(img):
     """The image state ``img`` with counters and entropy scratch of its own, for another
     thread; the images and the entropy's counts stay shared."""
@@ -103,8 +114,7 @@ def first_costs(mesh, rules, terms, scratch, images, threads: int | None = None)
     costs, keeps, places = np.empty(n), np.empty(n, np.int64), np.empty((n, 3))
     out = (costs, keeps, places)
     threads = numba.get_num_threads() if threads is None else int(threads)
-    size = min(CHUNK, max(MIN_CHUNK, -(-n // (CHUNKS_PER_THREAD * max(1, threads)))))
-    chunks = [(lo, min(lo + size, n)) for lo in range(0, n, size)]
+    chunks = edge_chunks(n, max(1, threads))
     threads = max(1, min(threads, len(chunks)))
     if threads == 1:
         _cost_range(0, n, edges, mesh, rules, terms, scratch, images, *out)
