@@ -169,8 +169,7 @@ def _welzl(q: np.ndarray, end: int, support: list, tol: float) -> tuple[np.ndarr
 
     The scan over points is compiled (:func:`_first_outside`): find the first point
     outside the current ball, recurse with it added to the support set, and continue the
-    scan after it. The
-    recursion depth is bounded by the support size (at most 4 in 3D).
+    scan after it. The recursion depth is bounded by the support size (at most 4 in 3D).
     """
     center, r2 = _circumball(support)
     if len(support) == 4:
