@@ -568,7 +568,6 @@ def _hysteresis(ridges: np.ndarray, high: float) -> np.ndarray:
         return candidates
     strong = np.zeros(count + 1, bool)
     strong[groups[candidates & (ridges >= high)]] = True
-    strong[0] = False
     return strong[groups]
 
 
