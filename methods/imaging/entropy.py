@@ -42,7 +42,7 @@ def entropy_init(IDS, ent):
         TOT[h] = a
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _entropy_change(h, rect, ids, IDS, ent, commit):
     """Change of view ``h``'s entropy when the faces seen in ``rect`` become ``ids``
     (rectangle-relative) instead of ``IDS``: only the faces whose pixel count changes

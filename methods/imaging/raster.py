@@ -291,7 +291,7 @@ _lanes = _lane_pass(True)
 _lanes_probe = _lane_pass(False)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=None):
     """Z-buffer row ``k`` of table ``t``, a face with id ``fid``, into the region
     [r_lo, r_hi] x [c_lo, c_hi]; with ``spans`` (rows, 2), only columns
@@ -305,7 +305,7 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
     return _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, False)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def wins_any(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
     """Whether :func:`scan_row` of the same arguments would change any pixel of
     ``depth`` and ``ids``, which it leaves as they are: it stops at the first pixel

@@ -67,7 +67,7 @@ AFFECTED_CAP = 8192
 NEW_UV_CAP = 64
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _grow(rect, box):
     if box[0] > box[1] or box[2] > box[3]:
         return
@@ -103,7 +103,7 @@ def _add_face(f, falive, mark, tk, out, n):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
     """Append to ``out[n:]`` the live faces of vertex ``y`` not marked ``tk`` (marking
     them); returns the new count."""
@@ -114,7 +114,7 @@ def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws, wfrom,
                  wto, npairs, atick, commit, background):
     """Re-render ``rect`` of view ``h`` as the mesh looks after collapsing ``u`` into
@@ -167,7 +167,7 @@ def _is_hole(w, gmark, atick):
     return w >= 0 and gmark[w] == atick
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _open_holes(h, rect, img, iws, atick):
     """Start ``iws.depth``/``iws.ids`` (rectangle-relative) from view ``h``'s current
     depth and faces, with the pixels of changed faces (``gmark == atick``) emptied;
@@ -202,7 +202,7 @@ def _open_holes(h, rect, img, iws, atick):
     return nh, far
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
     """Scan the changed faces ``iws.aff[:na]`` (after the collapse, those of the edge
     gone) over ``rect``; they become table rows 0..n-1. Returns n. A face wholly behind
@@ -223,7 +223,7 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
     """Scan every other face whose box meets the open holes' box in a tile holding an
     open hole (stamped in ``iws.hmark``; from the tile index) over that box, each row
@@ -282,7 +282,7 @@ def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
     return n2
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _commit_ids(h, rect, img, iws):
     """Write the rectangle's faces and depths into view ``h``'s ``IDS`` and ``DZ``."""
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
@@ -292,7 +292,7 @@ def _commit_ids(h, rect, img, iws):
             img.DZ[h, r, c] = iws.depth[r - r0, c - c0]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, npairs,
                    atick, commit, background):
     """Shade the rectangle's pixels whose face changed, or whose face's shading may have
@@ -536,7 +536,7 @@ def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
         wait(job, g)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws, wfrom,
                wto, npairs, background):
     """View ``h``'s part of :func:`image_cost`: its rectangle re-rendered as after the
@@ -564,7 +564,7 @@ def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
                                 iws, wfrom, wto, npairs, atick, False, background)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
     """Whether collapsing ``u`` into ``v`` leaves view ``h`` as it is: no pixel shows a
     face whose geometry or shading changes (``iws.aff[:ns]``; the entropy's per-face
@@ -587,7 +587,7 @@ def _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _take_views(row, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background):
     """Render the published job's views, one at a time, until none is left (a cost's
     in the order ``iws.vorder``, until their |dH| passes ``iws.vbound``); returns how

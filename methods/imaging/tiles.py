@@ -86,7 +86,7 @@ def _overlaps(box, rect):
                 or box[3] < rect[2] or box[2] > rect[3])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _gather(tiles, h, rect, fbox, falive, mark, tick, cand, n, tile, nx, tmark, ttick):
     """Append to ``cand[n:]`` the live, unmarked faces whose box overlaps ``rect``,
     looking only in the tiles marked ``tmark == ttick`` (the tiles where something is
