@@ -1,6 +1,14 @@
 """Region re-rendering: a view's rectangle around a collapse drawn as it would look
 after it (:func:`image_cost`, equation 8 of Lindstrom & Turk 2000) or as it is after
-it (:func:`commit_geometry`, :func:`commit_render`)."""
+it (:func:`commit_geometry`, :func:`commit_render`).
+
+Every function a view's re-render passes through (:func:`_take_views` down to the
+scans) is compiled without reference counting (numba's ``_nrt=False``): each takes the
+image state and scratch, some 60 arrays, whose counts it would otherwise raise on entry
+and lower on exit, atomically, once per array and call. They allocate nothing and
+return no array, and every array they see is held by a caller for the whole call
+(``docs/maintainers.md``, "State in the numba kernels"). A function added to that path
+keeps to the same rule; one that must allocate is compiled as usual."""
 
 from __future__ import annotations
 
