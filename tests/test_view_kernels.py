@@ -17,4 +17,3 @@ PER_VIEW = (region._take_views, region._cost_view, region._unchanged, region._re
 @pytest.mark.parametrize("kernel", PER_VIEW, ids=lambda k: k.py_func.__qualname__)
 def test_a_per_view_kernel_is_compiled_without_reference_counting(kernel):
     assert kernel.targetoptions.get("_nrt") is False
-
