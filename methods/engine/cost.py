@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from methods.engine.canny import _walk
+from methods.engine.capacity import over_capacity
 from methods.engine.lindstrom_turk import lt_cost, lt_placement
 from methods.engine.policy import (
     BOUNDARY_RULE,
@@ -52,7 +53,8 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
     ``mesh``, ``rules``, ``terms``, ``scratch`` and ``images`` are the structures of
     :mod:`methods.engine.state`. Returns (cost, keep): keep is the vertex that survives
     (the other is removed), and the new position is written to ``scratch.p``. cost is
-    +inf when the seam or boundary rule forbids the collapse.
+    +inf when the seam or boundary rule forbids the collapse, or when it does not fit
+    the engine's workspaces (:mod:`methods.engine.capacity`).
 
     The steps: the summed quadric (:func:`_edge_quadric`), the vertex the rules force
     to stay (:func:`_forced_end`), the Lindstrom–Turk profile when a term or the
@@ -60,6 +62,9 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
     it (:func:`_place_and_cost`).
     """
     P, out_p = mesh.P, scratch.p
+    if over_capacity(a, b, mesh, rules, scratch):  # the capacity rule (capacity.py)
+        out_p[:] = P[b]
+        return np.inf, b
     _edge_quadric(a, b, mesh, scratch)
     forced = _forced_end(a, b, mesh, rules, scratch)
     if forced == -2:  # forbidden
