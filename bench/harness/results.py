@@ -39,14 +39,32 @@ from pathlib import Path
 
 from bench.errors import InputError
 
-__all__ = ["CSV_COLUMNS", "SCHEMA_VERSION", "STATUSES", "load_record", "load_records",
+__all__ = ["CSV_COLUMNS", "OFF_TARGET", "SCHEMA_VERSION", "STATUSES", "evaluated",
+           "load_record", "load_records", "result_status",
            "metric_columns", "record_problem", "records_table", "shading_label", "write_atomic",
            "write_file", "write_record", "write_table"]
 
 SCHEMA_VERSION = 1
 
-#: The statuses a record can have.
-STATUSES = ("ok", "failed", "skipped")
+#: The statuses a record can have: ``ok``, ``ok, off target`` (evaluated, but its face
+#: count is more than :data:`OFF_TARGET` away from the target: compared with nothing
+#: at another face count, never marked best), ``failed``, ``skipped``.
+STATUSES = ("ok", "ok, off target", "failed", "skipped")
+OK = "ok"
+OFF_TARGET_STATUS = "ok, off target"
+#: The relative distance from its target beyond which a result is off target.
+OFF_TARGET = 0.10
+
+
+def evaluated(record: dict) -> bool:
+    """True for a record with figures: ``ok`` or ``ok, off target``."""
+    return record.get("status") in (OK, OFF_TARGET_STATUS)
+
+
+def result_status(faces: int, target: int) -> str:
+    """``ok`` when ``faces`` is within :data:`OFF_TARGET` of ``target``, else ``ok, off
+    target``."""
+    return OK if abs(faces - target) <= OFF_TARGET * target else OFF_TARGET_STATUS
 
 #: The leading columns of results.csv, in order (DESIGN "Results"; issue "runner").
 #: ``shading`` is the evaluation shading (:func:`shading_label`); ``exterior_share`` is
@@ -213,7 +231,7 @@ def record_problem(record) -> str | None:
         return problem
     if record.get("error") is not None and not isinstance(record["error"], str):
         return f"'error' must be a string or null, got {_kind(record['error'])}"
-    ok = record["status"] == "ok"
+    ok = evaluated(record)
     for name, check in _PARTS.items():
         value = record.get(name)
         if value is None:
