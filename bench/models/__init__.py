@@ -29,6 +29,9 @@ __all__ = [
     "TORUS_13810",
     "TORUS_PUZZLE",
     "TWO_MATERIALS",
+    "KIT",
+    "UV_SPHERE",
+    "VEHICLE",
     "ModelSpec",
     "pymeshlab_sample",
     "resolve_model",
@@ -167,6 +170,28 @@ TORUS_13810 = ModelSpec(
     "torus-13810", "the textured torus pre-decimated to 13,810 faces (Table 1 of "
     "González et al. 2008: 13,810 -> 1,000)", "torus, quadric engine (texture quadrics)",
     _predecimated(TORUS, 13810), derived_faces=13810)
+
+
+def _wild(make: str) -> Callable[[], Mesh]:
+    def load() -> Mesh:
+        from bench.models import wild
+
+        return getattr(wild, make)()
+    return load
+
+
+UV_SPHERE = ModelSpec(
+    "uv-sphere", "a UV sphere of 200 segments and 60 rings: each pole one position with "
+    "200 render vertices, a wrap-around seam (the wild suite)",
+    "procedural (bench.models.wild)", _wild("make_uv_sphere"))
+KIT = ModelSpec(
+    "kit", "a kit of 17 small props in six flat-colour materials: boxes, barrels, bolts, a "
+    "box standing on another unwelded, sign plates on non-manifold edges (the wild suite)",
+    "procedural (bench.models.wild, seed 43)", _wild("make_kit"))
+VEHICLE = ModelSpec(
+    "vehicle", "a vehicle-like assembly: a textured body and cabin, four separate wheels, "
+    "hubcaps and axles in three materials (the wild suite)",
+    "procedural (bench.models.wild)", _wild("make_vehicle"))
 
 
 def _looks_like_path(word: str) -> bool:
