@@ -108,8 +108,12 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         if scan.get("text") is not None:  # re-encoded as UTF-8, or polygons ear-clipped
             scene = trimesh.load_scene(io.BytesIO(scan["text"].encode("utf-8")),
                                        file_type=scan.get("file_type", "obj"),
-                                       resolver=_TextResolver(str(path)),
+                                       resolver=_TextResolver(str(path),
+                                                              scan.get("texture_aliases")),
                                        process=False, skip_materials=False)
+        elif scan.get("texture_aliases"):  # a texture line with options
+            scene = trimesh.load_scene(str(path), process=False, skip_materials=False,
+                                       resolver=_TextResolver(str(path), scan["texture_aliases"]))
         else:
             scene = trimesh.load_scene(str(path), process=False, skip_materials=False)
         keys = _material_keys(scene, ext, scan)
@@ -625,14 +629,16 @@ def _check_file_uv(uv: np.ndarray, source: str, obj: Path | None) -> None:
 
 class _TextResolver:
     """trimesh's file resolver for an OBJ read from text: a material file that is not
-    UTF-8 is handed over re-encoded from Latin-1 (trimesh decodes only UTF-8)."""
+    UTF-8 is handed over re-encoded from Latin-1 (trimesh decodes only UTF-8). A texture
+    trimesh asks for by the whole rest of its ``map_Kd`` line, options included, is
+    read from the file name in it (``aliases``, from :func:`_scan_obj`)."""
 
-    def __new__(cls, source: str):
+    def __new__(cls, source: str, aliases: dict | None = None):
         from trimesh.resolvers import FilePathResolver
 
         class Resolver(FilePathResolver):
             def get(self, name: str):
-                data = super().get(name)
+                data = super().get((aliases or {}).get(name, name))
                 if isinstance(data, bytes) and name.lower().endswith(".mtl"):
                     data = _decode(data)[0].encode("utf-8")
                 return data
@@ -872,7 +878,9 @@ def _scan_obj(path: Path) -> dict:
                     elif idx > maxima[kind][0]:
                         maxima[kind] = (idx, lineno)
         elif line.startswith(b"mtllib"):
-            mtllibs.extend(line.split()[1:])
+            whole = line[len(b"mtllib"):].strip()  # one name with spaces, or several
+            named = whole and (path.parent / whole.decode(encoding)).is_file()
+            mtllibs.extend([whole] if named else line.split()[1:])
         elif line.startswith(b"usemtl"):
             words = line.split()
             if len(words) > 1:
@@ -889,7 +897,7 @@ def _scan_obj(path: Path) -> dict:
                              f"range (the file has {counts[kind]} {_INDEX_UNITS[kind]}); the "
                              "file is corrupt or truncated")
     refs, found, unreadable, textures, files = [], [], [], {}, [(path, "mesh")]
-    mtl_encodings = []
+    mtl_encodings, aliases = [], {}
     for lib in mtllibs:
         mtl = path.parent / lib.decode(encoding)
         if not mtl.is_file():
@@ -906,10 +914,16 @@ def _scan_obj(path: Path) -> dict:
                 current = parts[1]
             elif (key.startswith("map_") or key in ("bump", "disp", "decal", "norm")) \
                     and len(parts) > 1:
-                files.append((mtl.parent / parts[-1], "texture"))
+                tex = _map_file(line)
+                if not tex:
+                    continue
+                files.append((mtl.parent / tex, "texture"))
                 if key not in ("map_kd", "map_ka"):
                     continue
-                tex = parts[-1]
+                if key == "map_kd":  # trimesh's name for it: the rest of the line
+                    said = line.strip()[len("map_kd"):].strip()
+                    if said != tex:
+                        aliases[said] = tex
                 where = mtl.parent / tex
                 problem = None if where.is_file() else \
                     "is a directory" if where.is_dir() else "not found"
@@ -930,7 +944,33 @@ def _scan_obj(path: Path) -> dict:
             "first_short": first_short, "texture_refs": refs, "texture_files": found,
             "texture_unreadable": unreadable, "usemtl": list(usemtl),
             "material_textures": textures, "files": files, "encoding": encoding,
-            "text": text}
+            "text": text, "texture_aliases": aliases, "mtllib": bool(mtllibs)}
+
+
+#: Options of an MTL texture statement (``map_Kd -s 1 1 1 -clamp on file.png``) and how
+#: many values each takes; ``-o``, ``-s`` and ``-t`` take one to three numbers.
+_MAP_OPTIONS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1,
+                "-imfchan": 1, "-mm": 2, "-texres": 1, "-type": 1, "-o": 3, "-s": 3, "-t": 3}
+
+
+def _map_file(line: str) -> str:
+    """The file name of an MTL texture statement: what follows the keyword and its
+    options, to the end of the line, inner spaces included (``map_Kd -s 2 2 fuze uv.jpg``
+    -> ``fuze uv.jpg``); empty when there is none."""
+    words = list(re.finditer(r"\S+", line))[1:]  # after the keyword
+    i = 0
+    while i < len(words) and words[i].group().lower() in _MAP_OPTIONS:
+        option, i = words[i].group().lower(), i + 1
+        for n in range(_MAP_OPTIONS[option]):
+            if i >= len(words):
+                break
+            if option in ("-o", "-s", "-t") and n > 0:  # the optional 2nd and 3rd value
+                try:
+                    float(words[i].group())
+                except ValueError:
+                    break
+            i += 1
+    return line[words[i].start():].strip() if i < len(words) else ""
 
 
 def _ear_clip(text: str, big: list) -> tuple[str | None, int]:
