@@ -1,8 +1,10 @@
 """Loading the files users have: texture and material file names with spaces, and
-texture options, in an MTL."""
+texture options, in an MTL; an OBJ with UVs and no ``mtllib`` (a warning, and
+``MODEL::texture=IMAGE``)."""
 
 from __future__ import annotations
 
+import json
 import warnings
 from pathlib import Path
 
@@ -11,8 +13,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
+from test_cli import assert_one_line_error, bench
 
+from bench.errors import InputError, MeshWarning, UnknownNameError
 from bench.io.meshio import _map_file, input_files, load_mesh
+from bench.models import parse_model_spec, resolve_model
 from conftest import write
 
 WILD = Path(__file__).resolve().parents[2] / "shared" / "assets" / "wild"
@@ -143,3 +148,192 @@ def test_fuze_loads_with_its_texture():
     with Image.open(WILD / "fuze" / "fuze uv.jpg") as picture:
         expected = np.asarray(picture.convert("RGB"))
     np.testing.assert_array_equal(mesh.texture, expected)
+
+
+# == an OBJ with UVs and no mtllib ==========================================================
+
+def test_uvs_and_no_mtllib_warn_of_the_image_with_the_same_stem(tmp_path):
+    write(tmp_path / "sq.obj", SQUARE_UV + "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    image(tmp_path / "sq.png", (9, 9, 9))
+    image(tmp_path / "other.png", (9, 9, 9))
+    with pytest.warns(MeshWarning) as caught:
+        mesh = load_mesh(tmp_path / "sq.obj")
+    assert mesh.texture is None and mesh.uv is not None
+    (message,) = [str(w.message) for w in caught]
+    assert message == (
+        f"{tmp_path / 'sq.obj'}: has texture coordinates but no material file (no mtllib "
+        "line), so it loads untextured; sq.png beside it looks like its texture: give it as "
+        f"{tmp_path / 'sq.obj'}::texture={tmp_path / 'sq.png'} (bench simplify: --texture "
+        f"{tmp_path / 'sq.png'})")
+
+
+def test_uvs_and_no_mtllib_warn_of_the_only_image(tmp_path):
+    write(tmp_path / "sq.obj", SQUARE_UV + "f 1/1 2/2 3/3\n")
+    image(tmp_path / "paint.JPG", (9, 9, 9))
+    with pytest.warns(MeshWarning, match=r"paint\.JPG beside it looks like its texture"):
+        load_mesh(tmp_path / "sq.obj")
+
+
+@pytest.mark.parametrize("images", [[], ["a.png", "b.png"]])
+def test_no_warning_without_a_likely_texture(tmp_path, images):
+    write(tmp_path / "sq.obj", SQUARE_UV + "f 1/1 2/2 3/3\n")
+    for name in images:
+        image(tmp_path / name, (9, 9, 9))
+    assert no_warnings(load_mesh, tmp_path / "sq.obj").texture is None
+
+
+def test_no_warning_without_uvs(tmp_path):
+    write(tmp_path / "sq.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n")
+    image(tmp_path / "sq.png", (9, 9, 9))
+    assert no_warnings(load_mesh, tmp_path / "sq.obj").uv is None
+
+
+@pytest.mark.skipif(not (WILD / "spot").is_dir(), reason=f"{WILD / 'spot'} is absent")
+def test_spot_warns_and_loads_with_the_texture_given():
+    obj, png = WILD / "spot" / "spot_triangulated.obj", WILD / "spot" / "spot_texture.png"
+    with pytest.warns(MeshWarning, match=r"spot_texture\.png beside it looks like its texture"):
+        assert load_mesh(obj).texture is None
+    mesh = no_warnings(resolve_model, f"{obj}::texture={png}")
+    with Image.open(png) as picture:
+        np.testing.assert_array_equal(mesh.texture, np.asarray(picture.convert("RGB")))
+    assert mesh.n_faces == 5856
+
+
+# == MODEL::texture=IMAGE ===================================================================
+
+@pytest.fixture
+def square(tmp_path, monkeypatch):
+    """sq.obj with UVs and no mtllib, and t.png (not named like it) in a sub-folder; the
+    working directory is tmp_path."""
+    monkeypatch.chdir(tmp_path)
+    write(tmp_path / "sq.obj", SQUARE_UV + "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    (tmp_path / "img").mkdir()
+    return image(tmp_path / "img" / "t.png", (30, 60, 90))
+
+
+def test_a_model_spec_gives_the_texture(square):
+    mesh = no_warnings(resolve_model, "sq.obj::texture=img/t.png")
+    np.testing.assert_array_equal(mesh.texture, square)
+    assert mesh.metadata["texture"] == "img/t.png"
+    assert mesh.name == "sq"
+    plain = no_warnings(resolve_model, "sq.obj")
+    np.testing.assert_array_equal(mesh.positions, plain.positions)
+    np.testing.assert_array_equal(mesh.uv, plain.uv)
+    assert mesh.content_hash != plain.content_hash
+
+
+def test_a_registered_model_takes_a_texture(square):
+    torus = resolve_model("torus")
+    mesh = resolve_model("torus::texture=img/t.png")
+    np.testing.assert_array_equal(mesh.texture, square)
+    np.testing.assert_array_equal(mesh.uv, torus.uv)
+    assert torus.texture.shape != square.shape  # the cached built-in is untouched
+
+
+@pytest.mark.parametrize(("spec", "message"), [
+    ("sq.obj::", r"^model 'sq\.obj::': options are written MODEL::texture=IMAGE"),
+    ("sq.obj::texture", r"options are written MODEL::texture=IMAGE"),
+    ("sq.obj::texture=", r"options are written MODEL::texture=IMAGE"),
+    ("::texture=img/t.png", r"options are written MODEL::texture=IMAGE"),
+    ("sq.obj::colour=red", (r"^model 'sq\.obj::colour=red': unknown option 'colour'; the one "
+                           r"option is texture \(MODEL::texture=IMAGE\)$")),
+    ("sq.obj::texture=img/t.png::texture=img/t.png", r"texture given twice$"),
+    ("sq.obj::texture=t.png", (r"^t\.png: no such texture image \(the texture given for "
+                              r"sq\.obj\)$")),
+    ("sq.obj::texture=img", r"^img: is a directory, not an image"),
+    ("sq.obj::texture=sq.obj", r"^sq\.obj: texture image cannot be read as an image"),
+    ("nope.obj::texture=img/t.png", r"^nope\.obj: no such file$"),
+    ("bunnny::texture=img/t.png", r"^unknown model 'bunnny'"),
+    ("two-materials::texture=img/t.png", (r"^two-materials: has 2 materials, each with its own "
+                                         r"texture")),
+])
+def test_bad_model_specs(square, spec, message):
+    with pytest.raises((InputError, UnknownNameError), match=message):
+        resolve_model(spec)
+
+
+def test_a_texture_for_a_mesh_without_uvs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    write(tmp_path / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    image(tmp_path / "t.png", (1, 1, 1))
+    with pytest.raises(InputError, match=r"^tri\.obj: has no texture coordinates, so the "
+                                         r"texture t\.png cannot be applied"):
+        resolve_model("tri.obj::texture=t.png")
+
+
+def test_a_relative_texture_beside_the_mesh_is_hinted(tmp_path, monkeypatch):
+    (tmp_path / "far").mkdir()
+    write(tmp_path / "far" / "sq.obj", SQUARE_UV + "f 1/1 2/2 3/3\n")
+    image(tmp_path / "far" / "t.png", (1, 1, 1))
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match=r"relative paths are from the current folder: did "
+                                         r"you mean far/t\.png\?$"):
+        resolve_model("far/sq.obj::texture=t.png")
+
+
+def test_parse_model_spec():
+    assert parse_model_spec("a.obj") == ("a.obj", {})
+    assert parse_model_spec("dir/a b.obj::texture=my t.png") == ("dir/a b.obj",
+                                                                 {"texture": "my t.png"})
+
+
+@pytest.fixture
+def grid_obj(tmp_path):
+    """A 6 x 6 grid of quads (72 triangles) with UVs and no mtllib, and grid.png."""
+    n = 7
+    xs, ys = np.meshgrid(np.arange(n), np.arange(n))
+    lines = [f"v {x} {y} 0" for x, y in zip(xs.ravel(), ys.ravel())]
+    lines += [f"vt {x / (n - 1)} {y / (n - 1)}" for x, y in zip(xs.ravel(), ys.ravel())]
+    for y in range(n - 1):
+        for x in range(n - 1):
+            a, b, c, d = (y * n + x + 1, y * n + x + 2, (y + 1) * n + x + 2, (y + 1) * n + x + 1)
+            lines += [f"f {a}/{a} {b}/{b} {c}/{c}", f"f {a}/{a} {c}/{c} {d}/{d}"]
+    write(tmp_path / "grid.obj", "\n".join(lines) + "\n")
+    return tmp_path / "grid.obj", image(tmp_path / "grid.png", (40, 80, 120), size=(8, 8))
+
+
+def test_simplify_with_texture_writes_it(tmp_path, grid_obj):
+    obj, pixels = grid_obj
+    out = tmp_path / "out" / "g.obj"
+    out.parent.mkdir()
+    proc = bench("simplify", obj, out, "-m", "qslim", "-f", "36", "--texture",
+                 tmp_path / "grid.png")
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    written = load_mesh(out)
+    np.testing.assert_array_equal(written.texture, pixels)
+    assert written.n_faces < 72
+
+
+def test_simplify_warns_without_texture_and_refuses_two(tmp_path, grid_obj):
+    obj, _ = grid_obj
+    proc = bench("simplify", obj, tmp_path / "g.glb", "-m", "qslim", "-f", "36")
+    assert proc.returncode == 0
+    assert proc.stderr.startswith(f"bench: warning: {obj}: has texture coordinates but no "
+                                  "material file"), proc.stderr
+    png = tmp_path / "grid.png"
+    assert_one_line_error(bench("simplify", f"{obj}::texture={png}", tmp_path / "g.glb", "-m",
+                                "qslim", "-f", "36", "--texture", png), "give it once")
+    assert_one_line_error(bench("simplify", f"{obj}::texture=nope.png", tmp_path / "g.glb",
+                                "-m", "qslim", "-f", "36"),
+                          "nope.png: no such texture image")
+
+
+def test_simplify_never_writes_over_a_given_texture(tmp_path, grid_obj):
+    obj, pixels = grid_obj
+    proc = bench("simplify", obj, tmp_path / "grid.obj", "-m", "qslim", "-f", "36",
+                 "--texture", tmp_path / "grid.png", "--force")
+    assert_one_line_error(proc, "is the input's texture")
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "grid.png")), pixels)
+
+
+@pytest.mark.slow
+def test_run_names_the_model_as_given(tmp_path, grid_obj):
+    obj, _ = grid_obj
+    spec = f"{obj}::texture={tmp_path / 'grid.png'}"
+    proc = bench("run", "--models", spec, "--methods", "qslim", "--faces", "36", "--out",
+                 tmp_path / "run", "--jobs", "1", "--no-report", timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    (record,) = [json.loads(p.read_text()) for p in (tmp_path / "run" / "records").glob("*.json")]
+    assert record["job"]["model"] == spec and record["status"] == "ok"
+    textured = load_mesh(obj, texture_file=tmp_path / "grid.png")
+    assert record["model"]["hash"] == textured.content_hash

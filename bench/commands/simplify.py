@@ -38,14 +38,15 @@ from bench.io.meshio import (
     save_mesh,
 )
 from bench.method import parse_params, resolve_target, run_method
-from bench.models import resolve_model
+from bench.models import parse_model_spec, resolve_model
 from bench.registry import registry
 
 
 def add_parser(sub, name: str) -> None:
     p = sub.add_parser(name, help="simplify one mesh and write the result (or an LOD chain)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("input", metavar="IN_OR_MODEL", help="a mesh file or a model name (bench list models)")
+    p.add_argument("input", metavar="IN_OR_MODEL", help="a mesh file or a model name (bench list "
+                   "models), with options as MODEL::texture=IMAGE")
     p.add_argument("output", metavar="OUT", help="output file (.obj, .ply, .glb, .gltf, .off, .stl)")
     p.add_argument("--method", "-m", required=True, help="method name (bench list methods)")
     target = p.add_mutually_exclusive_group(required=True)
@@ -62,6 +63,9 @@ def add_parser(sub, name: str) -> None:
                    help="LOD chain: evaluate each level against the input under the protocol "
                    "(d_rms, FLIP, Hausdorff, ...) into OUT.lods.json; renders 24 views per "
                    "level, slow on a CPU-only machine")
+    p.add_argument("--texture", metavar="IMAGE", help="the input's texture image, in place of "
+                   "its own (an OBJ with UVs and no mtllib has none); the same as "
+                   "IN_OR_MODEL::texture=IMAGE")
     p.add_argument("--param", "-p", action="append", default=[], metavar="KEY=VALUE",
                    help="method parameter (repeatable)")
     p.add_argument("--force", action="store_true",
@@ -93,6 +97,11 @@ def run(args) -> int:
         use_threads(whole_number(args.threads, "--threads"))
     method_cls = registry("method").load(args.method)
     check_output_path(args.output)  # fail before the work, not after
+    if args.texture is not None:
+        if "texture" in parse_model_spec(args.input)[1]:
+            raise InputError(f"--texture {args.texture}: the input {args.input!r} names a "
+                             "texture already; give it once")
+        args.input = f"{args.input}::texture={args.texture}"
     params = parse_params(method_cls.Params, args.param)
     faces = parse_levels(args.faces, "--faces", int) if args.faces is not None else None
     ratios = parse_levels(args.ratios, "--ratios", float) if args.ratios is not None else None
@@ -177,5 +186,7 @@ def _inputs(mesh, outputs: list[Path], force: bool) -> list:
     refusing, before the work, an output mesh file that is one of them; the writer
     checks every file it writes (materials, textures) again."""
     inputs = input_files(mesh.metadata.get("source"))
+    if mesh.metadata.get("texture"):  # given as MODEL::texture=IMAGE: never written over
+        inputs.append((Path(mesh.metadata["texture"]), "texture"))
     check_not_inputs(outputs, inputs, force)
     return inputs

@@ -54,8 +54,8 @@ from bench.io.atlas import split_materials
 from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
 from bench.mesh import Mesh
 
-__all__ = ["FORMATS", "SCENE_FORMATS", "check_not_inputs", "check_output_path", "glb_bytes",
-           "input_files", "load_mesh", "lod_path", "save_lods", "save_mesh"]
+__all__ = ["FORMATS", "SCENE_FORMATS", "apply_texture", "check_not_inputs", "check_output_path",
+           "glb_bytes", "input_files", "load_mesh", "lod_path", "save_lods", "save_mesh"]
 
 #: Supported file extensions and what they keep.
 FORMATS = {
@@ -73,7 +73,8 @@ SCENE_FORMATS = (".glb", ".gltf")
 logging.getLogger("trimesh").setLevel(logging.ERROR)  # our own warnings say what matters
 
 
-def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
+def load_mesh(path: str | os.PathLike, name: str | None = None, *,
+              texture_file: str | os.PathLike | None = None) -> Mesh:
     """Read a mesh file into a validated :class:`Mesh`.
 
     Parameters
@@ -82,6 +83,9 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         A file with one of the extensions in :data:`FORMATS`.
     name : str, optional
         Label for the mesh; defaults to the file's stem.
+    texture_file : str or PathLike, optional
+        An image to use as the mesh's texture, in place of the file's own (an OBJ
+        with UVs and no ``mtllib`` names none): see :func:`apply_texture`.
 
     Raises
     ------
@@ -124,7 +128,8 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         raise InputError(f"{source}: could not read as {ext[1:].upper()} "
                          f"({type(exc).__name__}: {exc})") from None
     if several:
-        return _load_materials(loaded, keys, source, ext, scan, name or path.stem)
+        mesh = _load_materials(loaded, keys, source, ext, scan, name or path.stem)
+        return mesh if texture_file is None else apply_texture(mesh, texture_file)
     if not isinstance(loaded, trimesh.Trimesh) or len(getattr(loaded, "faces", ())) == 0:
         raise InputError(f"{source}: the mesh has no faces (a point cloud or line set "
                          "cannot be simplified); export it with its triangles")
@@ -146,9 +151,65 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
     uv, texture, colors, normals = _attributes(loaded, source, ext, scan)
     if uv is not None:
         _check_file_uv(uv, source, path if ext == ".obj" else None)
-    return build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
+    if uv is not None and texture_file is None and ext == ".obj" and not scan.get("mtllib"):
+        _warn_no_material(path)
+    mesh = build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
                       colors=colors, texture=texture, name=name or path.stem,
                       metadata={"source": source})
+    return mesh if texture_file is None else apply_texture(mesh, texture_file)
+
+
+#: Extensions of the image files an OBJ's texture may be (for :func:`_warn_no_material`).
+_IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tga", ".bmp", ".tif", ".tiff", ".webp")
+
+
+def _warn_no_material(path: Path) -> None:
+    """The warning for an OBJ with texture coordinates and no ``mtllib`` line (so no
+    texture), when an image beside it looks like its texture: one with the OBJ's stem,
+    else the folder's only image. Said how to give it (``PATH::texture=IMAGE``)."""
+    images = sorted(p for p in path.parent.iterdir()
+                    if p.suffix.lower() in _IMAGE_EXTENSIONS and p.is_file())
+    same = [p for p in images if p.stem == path.stem]
+    likely = same[0] if same else images[0] if len(images) == 1 else None
+    if likely is None:
+        return
+    warn(f"{path}: has texture coordinates but no material file (no mtllib line), so it "
+         f"loads untextured; {likely.name} beside it looks like its texture: give it as "
+         f"{path}::texture={likely} (bench simplify: --texture {likely})")
+
+
+def apply_texture(mesh: Mesh, texture_file: str | os.PathLike) -> Mesh:
+    """``mesh`` with the image ``texture_file`` as its texture (replacing its own), for
+    a model given as ``PATH::texture=IMAGE`` or with ``bench simplify --texture``; the
+    image's path is kept in ``metadata["texture"]`` (never written over). A relative
+    path is taken from the current folder. InputError for a missing or unreadable
+    image, a mesh without texture coordinates, or one with several materials (each has
+    its own texture)."""
+    texture_file = Path(texture_file)
+    source = mesh.metadata.get("model") or mesh.metadata.get("source") or mesh.name
+    if not texture_file.is_file():
+        beside = Path(source).parent / texture_file
+        hint = (f"; relative paths are from the current folder: did you mean {beside}?"
+                if not texture_file.is_absolute() and beside.is_file() else "")
+        what = "is a directory, not an image" if texture_file.is_dir() else             "no such texture image"
+        raise InputError(f"{texture_file}: {what} (the texture given for {source}){hint}")
+    if mesh.uv is None:
+        raise InputError(f"{source}: has no texture coordinates, so the texture "
+                         f"{texture_file} cannot be applied to it; give a mesh with UVs")
+    atlas = mesh.metadata.get("atlas")
+    if atlas:
+        raise InputError(f"{source}: has {len(atlas['materials'])} materials, each with its "
+                         f"own texture; a texture ({texture_file}) can be given only for a "
+                         "mesh with one material")
+    from PIL import Image
+
+    try:
+        with Image.open(texture_file) as image:
+            image.load()
+            pixels = _image_array(image)
+    except Exception:  # noqa: BLE001 - PIL raises many kinds; one line for the user
+        raise InputError(f"{texture_file}: texture image {_unreadable(texture_file)}") from None
+    return mesh.replace(texture=pixels, metadata={**mesh.metadata, "texture": str(texture_file)})
 
 
 def save_mesh(mesh: Mesh, path: str | os.PathLike, *, inputs: list | None = None,
