@@ -1,10 +1,11 @@
-"""Loading the files users have: texture and material file names with spaces, and
-texture options, in an MTL; an OBJ with UVs and no ``mtllib`` (a warning, and
-``MODEL::texture=IMAGE``)."""
+"""Loading and writing the files users have: texture and material file names with
+spaces, and texture options, in an MTL; an OBJ with UVs and no ``mtllib`` (a warning,
+and ``MODEL::texture=IMAGE``); the material a written mesh gets."""
 
 from __future__ import annotations
 
 import json
+import struct
 import warnings
 from pathlib import Path
 
@@ -16,7 +17,8 @@ from PIL import Image
 from test_cli import assert_one_line_error, bench
 
 from bench.errors import InputError, MeshWarning, UnknownNameError
-from bench.io.meshio import _map_file, input_files, load_mesh
+from bench.io.meshio import _map_file, input_files, load_mesh, save_lods, save_mesh
+from bench.mesh import Mesh
 from bench.models import parse_model_spec, resolve_model
 from conftest import write
 
@@ -337,3 +339,107 @@ def test_run_names_the_model_as_given(tmp_path, grid_obj):
     assert record["job"]["model"] == spec and record["status"] == "ok"
     textured = load_mesh(obj, texture_file=tmp_path / "grid.png")
     assert record["model"]["hash"] == textured.content_hash
+
+
+# == the material a written mesh gets =======================================================
+
+def glb_json(path: Path) -> dict:
+    """The JSON chunk of a binary glTF file (read here, not through trimesh)."""
+    data = path.read_bytes()
+    assert data[:4] == b"glTF"
+    length, kind = struct.unpack("<II", data[12:20])
+    assert kind == 0x4E4F534A  # "JSON"
+    return json.loads(data[20:20 + length])
+
+
+def mtl_lines(path: Path) -> list[str]:
+    return [line.strip() for line in path.read_text().splitlines() if line.strip()]
+
+
+def textured_square(roughness=None) -> Mesh:
+    positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=np.float64)
+    texture = np.zeros((2, 2, 3), np.uint8)
+    texture[0, 0] = 255
+    metadata = {} if roughness is None else {"material": {"roughness": roughness}}
+    return Mesh(positions, [[0, 1, 2], [0, 2, 3]], uv=positions[:, :2], texture=texture,
+                metadata=metadata)
+
+
+@pytest.mark.parametrize("roughness", [None, 0.25])
+def test_a_textured_glb_is_white_not_metallic_with_its_roughness(tmp_path, roughness):
+    save_mesh(textured_square(roughness), tmp_path / "s.glb")
+    (material,) = glb_json(tmp_path / "s.glb")["materials"]
+    pbr = material["pbrMetallicRoughness"]
+    assert pbr["baseColorFactor"] == [1.0, 1.0, 1.0, 1.0]
+    assert pbr["metallicFactor"] == 0.0  # glTF reads a missing factor as 1: fully metallic
+    assert pbr["roughnessFactor"] == (1.0 if roughness is None else 0.25)
+    assert "baseColorTexture" in pbr
+    assert load_mesh(tmp_path / "s.glb").metadata["material"] == {
+        "roughness": 1.0 if roughness is None else 0.25}
+
+
+@pytest.mark.parametrize(("roughness", "ns"), [(None, "0"), (0.25, "562.5")])
+def test_a_textured_mtl_is_white_not_metallic_with_its_roughness(tmp_path, roughness, ns):
+    save_mesh(textured_square(roughness), tmp_path / "s.obj")
+    lines = mtl_lines(tmp_path / "s.mtl")
+    for expected in ("Kd 1.00000000 1.00000000 1.00000000", "Ks 0.00000000 0.00000000 0.00000000",
+                     "map_Kd s.png", f"Pr {1 if roughness is None else roughness:g}", "Pm 0"):
+        assert expected in lines
+    assert float(next(x for x in lines if x.startswith("Ns ")).split()[1]) == float(ns)
+    back = load_mesh(tmp_path / "s.obj")
+    assert back.metadata["material"] == {"roughness": 1.0 if roughness is None else roughness}
+
+
+@pytest.mark.parametrize(("mtl", "roughness"), [
+    ("Ns 0", 1.0), ("Ns 1000", 0.0), ("Ns 250", 0.5), ("Ns 250\nPr 0.125", 0.125),
+    ("Ns 5000", 0.0), ("", None)])
+def test_the_input_roughness_is_read(tmp_path, mtl, roughness):
+    image(tmp_path / "t.png", (5, 5, 5))
+    write(tmp_path / "a.mtl", f"newmtl m\nKd 1 1 1\n{mtl}\nmap_Kd t.png\n")
+    write(tmp_path / "sq.obj", "mtllib a.mtl\n" + SQUARE_UV + "usemtl m\nf 1/1 2/2 3/3\n")
+    mesh = no_warnings(load_mesh, tmp_path / "sq.obj")
+    assert mesh.metadata.get("material") == (None if roughness is None
+                                             else {"roughness": roughness})
+
+
+def test_simplify_writes_the_input_roughness(tmp_path, grid_obj):
+    obj, _ = grid_obj
+    write(obj.parent / "grid.mtl", "newmtl m\nNs 90\nPr 0.375\nmap_Kd grid.png\n")
+    obj.write_text("mtllib grid.mtl\nusemtl m\n" + obj.read_text())
+    proc = bench("simplify", obj, tmp_path / "g.glb", "-m", "qslim", "-f", "36")
+    assert proc.returncode == 0, proc.stderr
+    (material,) = glb_json(tmp_path / "g.glb")["materials"]
+    assert material["pbrMetallicRoughness"]["roughnessFactor"] == 0.375
+    assert material["pbrMetallicRoughness"]["metallicFactor"] == 0.0
+
+
+def test_lod_chains_and_several_materials_are_not_metallic(tmp_path):
+    mesh = textured_square()
+    save_lods([("LOD0", mesh), ("LOD1", mesh.replace(faces=mesh.faces[:1]))],
+              tmp_path / "c.glb")
+    (material,) = glb_json(tmp_path / "c.glb")["materials"]
+    assert material["pbrMetallicRoughness"]["metallicFactor"] == 0.0
+    assert material["pbrMetallicRoughness"]["baseColorFactor"] == [1.0, 1.0, 1.0, 1.0]
+    save_mesh(resolve_model("two-materials"), tmp_path / "two.glb")
+    materials = glb_json(tmp_path / "two.glb")["materials"]
+    assert len(materials) == 2
+    for material in materials:
+        assert material["pbrMetallicRoughness"]["metallicFactor"] == 0.0
+        assert material["pbrMetallicRoughness"]["roughnessFactor"] == 1.0
+
+
+def test_a_textured_material_without_kd_is_written_white(tmp_path):
+    """An MTL material with a texture and no Kd: recorded white, not trimesh's 0.4 grey
+    default, so the OBJ written back says Kd 1 1 1."""
+    image(tmp_path / "r.png", (200, 0, 0))
+    image(tmp_path / "g.png", (0, 200, 0))
+    write(tmp_path / "b.mtl", "newmtl r\nmap_Kd r.png\nnewmtl g\nKd 0.5 0.5 0.5\nmap_Kd g.png\n")
+    write(tmp_path / "two.obj", "mtllib b.mtl\n" + SQUARE_UV
+          + "usemtl r\nf 1/1 2/2 3/3\nusemtl g\nf 1/1 3/3 4/4\n")
+    mesh = no_warnings(load_mesh, tmp_path / "two.obj")
+    assert [m["color"] for m in mesh.metadata["atlas"]["materials"]] == [
+        [255, 255, 255, 255], [128, 128, 128, 255]]
+    (tmp_path / "out").mkdir()
+    save_mesh(mesh, tmp_path / "out" / "two.obj")
+    lines = mtl_lines(tmp_path / "out" / "two.mtl")
+    assert lines[:2] == ["newmtl r", "Kd 1 1 1"]

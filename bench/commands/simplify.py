@@ -116,7 +116,8 @@ def run(args) -> int:
     target = resolve_target(mesh.n_faces, faces[0] if faces else None,
                             ratios[0] if ratios else None)
     result = run_method(method_cls(params), mesh, target)
-    written = save_mesh(result.mesh, args.output, inputs=inputs, force=args.force)
+    written = save_mesh(_surfaced(result.mesh, mesh), args.output, inputs=inputs,
+                        force=args.force)
     seconds = result.stats.get("wall_seconds", 0.0)
     print(f"{mesh.name}: {mesh.n_faces} -> {result.mesh.n_faces} faces "
           f"({result.mesh.n_vertices} vertices) with {method_cls.name} in {seconds:.3f} s; "
@@ -165,7 +166,8 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
     levels = build_levels(method, mesh, targets, chain=args.chain, protocol=protocol,
                           progress=True, on_level=report)
     seconds = time.perf_counter() - start
-    files = save_lods([(level_name(0), mesh)] + [(lv.name, lv.result.mesh) for lv in levels],
+    files = save_lods([(level_name(0), mesh)] + [(lv.name, _surfaced(lv.result.mesh, mesh))
+                                                 for lv in levels],
                       out, inputs=inputs, force=args.force)
     record = sidecar(mesh, method, levels, args.chain, files, protocol, seconds=seconds,
                      source=args.input)
@@ -179,6 +181,14 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
             print(f"bench: note: {level.name} stopped short: {level.result.stop_reason}",
                   file=sys.stderr)
     return 0
+
+
+def _surfaced(result, mesh):
+    """``result`` with the input ``mesh``'s material finish (its roughness, as the loader
+    recorded it), which a method need not carry over, so the output is written with it."""
+    if "material" not in mesh.metadata:
+        return result
+    return result.replace(metadata={**result.metadata, "material": mesh.metadata["material"]})
 
 
 def _inputs(mesh, outputs: list[Path], force: bool) -> list:

@@ -42,6 +42,7 @@ from __future__ import annotations
 import hashlib
 import io
 import logging
+import math
 import os
 import re
 import tempfile
@@ -155,7 +156,7 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
         _warn_no_material(path)
     mesh = build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
                       colors=colors, texture=texture, name=name or path.stem,
-                      metadata={"source": source})
+                      metadata={"source": source, **_surface(loaded.visual)})
     return mesh if texture_file is None else apply_texture(mesh, texture_file)
 
 
@@ -564,6 +565,8 @@ def _load_materials(dumped: list, keys: dict, source: str, ext: str, scan: dict,
                 texture_source = source
             picture = _material_image(material) if texture_source is not None else None
             image = None if picture is None else _image_array(picture)
+            if image is not None and ext == ".obj" and "kd" not in getattr(material, "kwargs", {}):
+                color = (255, 255, 255, 255)  # no Kd: white, not trimesh's 0.4 grey
             if picture is None and texture_source is not None and ext == ".obj":
                 warn(f"{source}: material '{key}': texture image unreadable "
                      f"({_unreadable(Path(texture_source))}); using its colour")
@@ -733,7 +736,8 @@ def _export_files(tm, path: Path, **options) -> list[tuple[Path, bytes]]:
 
 def _to_trimesh(mesh: Mesh, material_name: str, material=None):
     """``mesh`` as a trimesh mesh; a textured one gets ``material`` if given (so the
-    levels of a chain can share one), else a new material named ``material_name``."""
+    levels of a chain can share one), else a new material named ``material_name``
+    (:func:`_plain_material`)."""
     import trimesh
     from PIL import Image
 
@@ -744,11 +748,61 @@ def _to_trimesh(mesh: Mesh, material_name: str, material=None):
     if mesh.uv is not None:
         if material is None:
             image = Image.fromarray(mesh.texture) if mesh.texture is not None else None
-            material = trimesh.visual.material.SimpleMaterial(image=image, name=material_name)
+            material = _plain_material(image, material_name, _roughness(mesh.metadata))
         tm.visual = trimesh.visual.TextureVisuals(uv=mesh.uv, material=material)
     elif mesh.colors is not None:
         tm.visual = trimesh.visual.ColorVisuals(tm, vertex_colors=mesh.colors)
     return tm
+
+
+def _surface(visual) -> dict:
+    """``{"material": {"roughness": r}}`` when a loaded file's one material states its
+    roughness, else ``{}`` (:func:`_roughness` then gives 1): glTF's roughness factor;
+    an MTL's ``Pr``, else its specular exponent ``Ns`` mapped as Blender maps it,
+    ``1 - sqrt(Ns / 1000)``. Kept so that a written result has the input's roughness."""
+    material = getattr(visual, "material", None)
+    roughness = getattr(material, "roughnessFactor", None)
+    stated = getattr(material, "kwargs", None) or {}
+    try:
+        if roughness is None and stated.get("pr"):
+            roughness = float(np.ravel(stated["pr"])[0])
+        elif roughness is None and stated.get("ns") is not None:
+            ns = float(np.ravel(stated["ns"])[0])
+            roughness = 1 - math.sqrt(min(max(ns, 0.0), 1000.0) / 1000)
+    except (TypeError, ValueError):
+        roughness = None
+    if roughness is None or not math.isfinite(roughness):
+        return {}
+    return {"material": {"roughness": min(max(float(roughness), 0.0), 1.0)}}
+
+
+def _roughness(metadata: dict) -> float:
+    """The roughness a mesh is written with: its input's (:func:`_surface`), else 1
+    (glTF's default; a fully rough, diffuse surface, as the protocol renders it)."""
+    return float((metadata.get("material") or {}).get("roughness", 1.0))
+
+
+def _plain_material(image, name: str, roughness: float):
+    """The material of a mesh written with one texture (or none): base colour white, so
+    that the texture alone is the colour, as the protocol renders it; not metallic; the
+    given roughness. A glTF gets them as its metallic-roughness factors, an MTL as
+    ``Kd 1 1 1``, ``Ks 0 0 0``, ``Ns`` (Blender's mapping, ``1000 (1 - r)^2``) and the
+    PBR lines ``Pr`` and ``Pm 0``. (trimesh's default is a 0.4 grey, and glTF reads a
+    missing metallic factor as fully metallic: a dull, dark result in PBR viewers.)"""
+    from trimesh.visual.material import PBRMaterial, SimpleMaterial
+
+    class Plain(SimpleMaterial):
+        def to_pbr(self):
+            return PBRMaterial(baseColorTexture=self.image, baseColorFactor=[255] * 4,
+                               metallicFactor=0.0, roughnessFactor=roughness)
+
+        def to_obj(self, name=None):
+            data, name = super().to_obj(name)
+            data[f"{name}.mtl"] += f"\nPr {roughness:.6g}\nPm 0".encode()
+            return data, name
+
+    return Plain(image=image, name=name, diffuse=[255] * 4, ambient=[255] * 4,
+                 specular=[0, 0, 0, 255], glossiness=1000 * (1 - roughness) ** 2)
 
 
 def _obj_material_files(mesh: Mesh, split: list, path: Path) -> list[tuple[Path, bytes]]:
@@ -838,7 +892,8 @@ def _scene(levels: list, stem: str):
                 textured = part.image is not None
                 materials[key] = trimesh.visual.material.PBRMaterial(
                     name=name, baseColorTexture=Image.fromarray(part.image) if textured else None,
-                    baseColorFactor=[255, 255, 255, 255] if textured else part.material["color"])
+                    baseColorFactor=[255, 255, 255, 255] if textured else part.material["color"],
+                    metallicFactor=0.0, roughnessFactor=_roughness(mesh.metadata))
             kwargs = {}
             if mesh.normals is not None:
                 kwargs["vertex_normals"] = mesh.normals[part.vertices]
