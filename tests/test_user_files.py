@@ -1,6 +1,7 @@
 """Loading and writing the files users have: texture and material file names with
 spaces, and texture options, in an MTL; an OBJ with UVs and no ``mtllib`` (a warning,
-and ``MODEL::texture=IMAGE``); the material a written mesh gets."""
+and ``MODEL::texture=IMAGE``); the material a written mesh gets; a written mesh reading
+back as it renders."""
 
 from __future__ import annotations
 
@@ -443,3 +444,27 @@ def test_a_textured_material_without_kd_is_written_white(tmp_path):
     save_mesh(mesh, tmp_path / "out" / "two.obj")
     lines = mtl_lines(tmp_path / "out" / "two.mtl")
     assert lines[:2] == ["newmtl r", "Kd 1 1 1"]
+
+
+# == round trip under the protocol ==========================================================
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model", [
+    "bunny-textured", "two-materials",
+    pytest.param(str(WILD / "fuze" / "fuze.obj"), id="fuze", marks=pytest.mark.skipif(
+        not (WILD / "fuze").is_dir(), reason=f"{WILD / 'fuze'} is absent"))])
+@pytest.mark.parametrize("ext", [".obj", ".glb"])
+@pytest.mark.parametrize("stem", ["rt", "my lod"])
+def test_an_unchanged_mesh_written_and_read_back_renders_the_same(tmp_path, model, ext, stem):
+    """The protocol's 24 views of the mesh and of the file written and read back (with a
+    space in the file's name, its material file and textures have one too)."""
+    from metrics.image import d_rms
+    from metrics.protocol import Protocol, render_views
+
+    mesh = resolve_model(model)
+    save_mesh(mesh, tmp_path / f"{stem}{ext}")
+    back = no_warnings(load_mesh, tmp_path / f"{stem}{ext}")
+    assert back.n_faces == mesh.n_faces and back.texture is not None
+    protocol = Protocol()
+    d, _ = d_rms(render_views(mesh, mesh, protocol), render_views(back, mesh, protocol))
+    assert d < 0.5
