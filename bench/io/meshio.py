@@ -192,7 +192,8 @@ def apply_texture(mesh: Mesh, texture_file: str | os.PathLike) -> Mesh:
         beside = Path(source).parent / texture_file
         hint = (f"; relative paths are from the current folder: did you mean {beside}?"
                 if not texture_file.is_absolute() and beside.is_file() else "")
-        what = "is a directory, not an image" if texture_file.is_dir() else             "no such texture image"
+        what = "is a directory, not an image" if texture_file.is_dir() else \
+            "no such texture image"
         raise InputError(f"{texture_file}: {what} (the texture given for {source}){hint}")
     if mesh.uv is None:
         raise InputError(f"{source}: has no texture coordinates, so the texture "
