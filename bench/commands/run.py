@@ -31,7 +31,8 @@ DEFAULT_RATIOS = (0.02, 0.01)
 
 def add_parser(sub, name: str) -> None:
     p = sub.add_parser(name, help="run the benchmark and write a report", description=__doc__)
-    p.add_argument("--models", help="comma-separated model names or mesh files (default: bunny,torus)")
+    p.add_argument("--models", help="comma-separated model names or mesh files (default: "
+                   "bunny,torus); MODEL::texture=IMAGE gives a model a texture")
     p.add_argument("--methods", help="comma-separated method names; NAME[key=value,...] sets "
                    "parameters (default: every available method)")
     budget = p.add_mutually_exclusive_group()
