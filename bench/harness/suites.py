@@ -109,13 +109,23 @@ class Suite:
     #: (``::``-options allowed): run when present, left out with a note when not
     assets: tuple[str, ...] = ()
 
+    def asset_specs(self) -> list[str]:
+        """The model specs of :attr:`assets`: paths (and a ``::texture=`` option's
+        image) under :func:`assets_folder`."""
+        root = assets_folder()
+        specs = []
+        for asset in self.assets:
+            path, *options = asset.split("::")
+            specs.append("::".join([str(root / path)] + [
+                f"texture={root / o[len('texture='):]}" if o.startswith("texture=") else o
+                for o in options]))
+        return specs
+
     def present_assets(self) -> tuple[list[str], list[str]]:
         """(the asset model specs whose files exist, the assets missing)."""
-        root = assets_folder()
         present, missing = [], []
-        for asset in self.assets:
-            path = root / asset.split("::")[0]
-            (present if path.is_file() else missing).append(str(root / asset))
+        for spec in self.asset_specs():
+            (present if Path(spec.split("::")[0]).is_file() else missing).append(spec)
         return present, missing
 
     def __post_init__(self) -> None:
@@ -142,8 +152,7 @@ class Suite:
                 if len(self.protocols) == 1 else None)
         object.__setattr__(self, "claims", tuple(replace(
             c, suite=self.name,
-            models=c.models or self.models + tuple(str(assets_folder() / a)
-                                                   for a in self.assets),
+            models=c.models or self.models + tuple(self.asset_specs()),
             faces=c.faces or (budgets if not c.ratios else ()),
             ratios=c.ratios or (self.ratios if not (c.faces or budgets) else ()),
             shading=c.shading or only)
@@ -242,7 +251,8 @@ SUITES = {
         "real assets of shared/assets/wild (a capsule, a bottle, a glTF truck, a cow)",
         models=("uv-sphere", "kit", "vehicle"), ratios=(0.10, 0.03),
         assets=("wild/capsule/capsule.obj", "wild/fuze/fuze.obj",
-                "wild/milk-truck/CesiumMilkTruck.glb", "wild/spot/spot_triangulated.obj"),
+                "wild/milk-truck/CesiumMilkTruck.glb",
+                "wild/spot/spot_triangulated.obj::texture=wild/spot/spot_texture.png"),
         claims=_wild_claims()),
     "lt2000-bunny": Suite(
         "lt2000-bunny", "L&T 2000 §5.1 (Table 1, Figures 5-7): the bunny at Table 1's five "
