@@ -330,3 +330,24 @@ def test_a_run_marks_a_result_that_stops_short_off_target(tmp_path):
     assert record["metrics"]["faces"] == 4
     assert "no valid collapse remains" in record["stop_reason"]
     assert "ended more than 10 % from their target" in proc.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ENGINE_METHODS)
+def test_no_atlas_cell_bleeds_into_its_neighbour(method):
+    """On the vehicle (a painted body, tyres and hubcaps in one atlas) every face of the
+    result keeps its corners in one material's tile, each UV inside its tile, and no
+    material is lost."""
+    from bench.io.atlas import materials_of, mixed_faces, tiles_of
+
+    mesh = quiet_load("vehicle")
+    tiles = tiles_of(materials_of(mesh))
+    for ratio in (0.1, 0.03):
+        out = registry("method").load(method)().simplify(
+            mesh, round(mesh.n_faces * ratio), None).mesh
+        assert not mixed_faces(out).any()
+        corner_tile = tiles[face_materials(out)]                     # (k, 4) per face
+        uv = out.uv[out.faces]                                        # (k, 3, 2)
+        assert (uv >= corner_tile[:, None, :2] - 1e-12).all()
+        assert (uv <= corner_tile[:, None, 2:] + 1e-12).all()
+        assert parts_lost(mesh, out)["materials"] == 0
