@@ -212,7 +212,7 @@ def record_problem(record) -> str | None:
     if not _is_int(schema) or schema < 1:
         return f"'schema' must be a positive integer, got {_show(schema)}"
     if record.get("status") not in STATUSES:
-        return (f"'status' must be one of {', '.join(STATUSES)}, "
+        return (f"'status' must be one of {', '.join(map(repr, STATUSES))}, "
                 f"got {_show(record.get('status'))}")
     job = record.get("job")
     if not isinstance(job, dict):
