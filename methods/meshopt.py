@@ -3,12 +3,12 @@
 Every row runs meshoptimizer 1.3.0 as published on the npm registry (its
 ``MeshoptSimplifier`` module, the C++ library built to WebAssembly by its author), on
 Node.js, from the job's own process: a small script of ours,
-``methods/meshopt_node/simplify.mjs``, reads the index and vertex buffers on stdin, makes
-one library call and writes the kept indices (and, for ``simplifyWithUpdate``, the
-updated vertices) on stdout. ``methods/meshopt_node/package-lock.json`` pins the library
-and gltfpack 1.3.0 with their integrity hashes; ``scripts/setup.sh`` installs them
-(``npm ci``). Why a process per call and not the module in process: docs/maintainers.md,
-"meshoptimizer on Node".
+``methods/meshopt_node/simplify.mjs``, started once per process and kept, reads index and
+vertex buffers on its stdin, makes one library call per request and writes the kept
+indices (and, for ``simplifyWithUpdate``, the updated vertices) on its stdout.
+``methods/meshopt_node/package-lock.json`` pins the library and gltfpack 1.3.0 with
+their integrity hashes; ``scripts/setup.sh`` installs them (``npm ci``). Why Node and a
+kept process: docs/maintainers.md, "meshoptimizer on Node".
 
 Rows (the library's documentation is its README, sections named below; the npm
 package's README documents the same flags for the JavaScript interface):
@@ -43,6 +43,7 @@ import shutil
 import struct
 import subprocess
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -140,8 +141,8 @@ class LibraryResult:
 def call_library(op: str, indices: np.ndarray, positions: np.ndarray, *,
                  attributes: np.ndarray | None = None, weights=(), lock: np.ndarray | None = None,
                  target_index_count: int = 0, target_error: float = UNBOUNDED_ERROR,
-                 flags=(), timeout: float | None = None) -> LibraryResult:
-    """One meshoptimizer call through ``simplify.mjs``.
+                 flags=()) -> LibraryResult:
+    """One meshoptimizer call, made by this process's ``simplify.mjs`` worker.
 
     Parameters
     ----------
@@ -178,15 +179,13 @@ def call_library(op: str, indices: np.ndarray, positions: np.ndarray, *,
         buffers.append(attributes.tobytes())
     if lock is not None:
         buffers.append(np.ascontiguousarray(lock, dtype=np.uint8).tobytes())
+    payload = b"".join(buffers)
+    header["bytes"] = len(payload)
     head = json.dumps(header).encode()
-    request = b"".join([struct.pack("<I", len(head)), head, *buffers])
-    reply = _node([str(SCRIPT)], request, timeout)
-    (size,) = struct.unpack_from("<I", reply, 0)
-    meta = json.loads(reply[4:4 + size])
-    offset = 4 + size
+    meta, reply = _WORKER.call(struct.pack("<I", len(head)) + head + payload)
     count = int(meta["index_count"])
-    kept = np.frombuffer(reply, "<u4", count, offset).reshape(-1, 3)
-    offset += 4 * count
+    kept = np.frombuffer(reply, "<u4", count, 0).reshape(-1, 3)
+    offset = 4 * count
     result = LibraryResult(kept, float(meta["error"]), float(meta["scale"]),
                            float(meta["seconds"]), meta["version"], meta["node"])
     if op == "update":
@@ -196,8 +195,88 @@ def call_library(op: str, indices: np.ndarray, positions: np.ndarray, *,
     return result
 
 
+class _NodeWorker:
+    """One Node process running ``simplify.mjs`` for this Python process, started on
+    the first call and kept: every call is then a request and a reply on its pipes,
+    without Node's start (docs/maintainers.md, "meshoptimizer on Node"). A worker that
+    died (or belongs to the parent of a fork) is replaced on the next call."""
+
+    def __init__(self):
+        self._proc = None
+        self._errors = None
+        self._pid = None
+        self._lock = threading.Lock()
+
+    def call(self, request: bytes) -> tuple[dict, bytes]:
+        """Send one request; the reply's header and body. MethodError with the script's
+        one-line reason when it refused the request, or when Node failed."""
+        with self._lock:
+            proc = self._process()
+            try:
+                proc.stdin.write(request)
+                proc.stdin.flush()
+                meta, body = _read_reply(proc.stdout)
+            except (OSError, EOFError, ValueError) as exc:
+                self._stop()
+                raise MethodError(f"simplify.mjs stopped ({type(exc).__name__}: {exc}); "
+                                  f"{_stderr_tail(proc, self._errors)}") from None
+        if meta.get("refused"):
+            raise MethodError(f"simplify.mjs refused the request: {meta['refused']}")
+        return meta, body
+
+    def _process(self):
+        if self._proc is None or self._proc.poll() is not None or self._pid != os.getpid():
+            try:
+                # Node's messages go to a file, read only when it dies (a pipe nobody
+                # reads could fill); the file lives as long as the process
+                errors = tempfile.TemporaryFile()  # noqa: SIM115
+                self._proc = subprocess.Popen(
+                    [node_binary(), str(SCRIPT)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                    stderr=errors, cwd=NODE_DIR)
+                self._errors = errors
+            except OSError as exc:
+                raise MethodError(f"cannot start Node.js ({exc.strerror or exc}); "
+                                  f"{node_problem() or 'check BENCH_NODE'}") from None
+            self._pid = os.getpid()
+        return self._proc
+
+    def _stop(self) -> None:
+        if self._proc is not None and self._proc.poll() is None:
+            self._proc.kill()
+            self._proc.wait()
+        self._proc = None
+
+
+_WORKER = _NodeWorker()
+
+
+def _read_reply(stream) -> tuple[dict, bytes]:
+    """One reply frame: u32 header length, JSON header (with ``bytes``), body."""
+    head = _read_exactly(stream, 4)
+    (size,) = struct.unpack("<I", head)
+    meta = json.loads(_read_exactly(stream, size))
+    return meta, _read_exactly(stream, int(meta.get("bytes", 0)))
+
+
+def _read_exactly(stream, n: int) -> bytes:
+    data = stream.read(n)
+    if len(data) != n:
+        raise EOFError(f"Node's reply ended after {len(data)} of {n} bytes")
+    return data
+
+
+def _stderr_tail(proc, errors) -> str:
+    """The last line Node wrote to stderr (why it died), or a fallback."""
+    try:
+        errors.seek(0)
+        lines = errors.read().decode("utf-8", "replace").strip().splitlines()
+    except (OSError, ValueError):
+        lines = []
+    return lines[-1] if lines else f"exit status {proc.poll()}"
+
+
 def _node(args: list[str], stdin: bytes, timeout: float | None) -> bytes:
-    """Run Node with ``args``; its stdout, or MethodError with its last stderr line."""
+    """Run Node once with ``args``; its stdout, or MethodError with its last stderr line."""
     try:
         proc = subprocess.run([node_binary(), *args], input=stdin, capture_output=True,
                               cwd=NODE_DIR, timeout=timeout, check=False)

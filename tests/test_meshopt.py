@@ -19,6 +19,7 @@ from bench.method import parse_params, run_method, target_tolerance
 from bench.models import BUNNY, BUNNY_TEXTURED, CRATE
 from bench.registry import Registry
 from methods.meshopt import (
+    _WORKER,
     LIBRARY_VERSION,
     NODE_DIR,
     SCRIPT,
@@ -383,15 +384,35 @@ def test_deterministic(name):
     assert a.stats.get("library_error") == b.stats.get("library_error")
 
 
-def test_a_truncated_request_is_refused_in_one_line():
-    head = json.dumps({"op": "simplify", "index_count": 3, "vertex_count": 3,
-                       "target_index_count": 3, "target_error": 1.0}).encode()
-    request = struct.pack("<I", len(head)) + head + np.arange(3, dtype="<u4").tobytes() + \
-        np.zeros(3, "<f4").tobytes()  # 3 floats where 9 are declared
+def frame(header: dict, body: bytes) -> bytes:
+    head = json.dumps({**header, "bytes": len(body)}).encode()
+    return struct.pack("<I", len(head)) + head + body
+
+
+def test_a_malformed_request_is_refused_in_one_line():
+    # 3 floats where the header declares 3 vertices (9 floats)
+    header = {"op": "simplify", "index_count": 3, "vertex_count": 3, "target_index_count": 3,
+              "target_error": 1.0}
+    body = np.arange(3, dtype="<u4").tobytes() + np.zeros(3, "<f4").tobytes()
     with pytest.raises(MethodError) as info:
-        _node([str(SCRIPT)], request, 60)
-    assert str(info.value) == ("simplify.mjs failed (exit status 2): truncated request: the "
-                               "positions needs 36 bytes, 12 left")
+        _WORKER.call(frame(header, body))
+    assert str(info.value) == ("simplify.mjs refused the request: malformed request: the "
+                               "positions need 36 bytes, the body has 12 left")
+    # the worker goes on serving
+    good = np.arange(3, dtype="<u4").tobytes() + np.eye(3, dtype="<f4").tobytes()
+    meta, reply = _WORKER.call(frame(header, good))
+    assert meta["index_count"] == 3 and np.frombuffer(reply, "<u4").tolist() == [0, 1, 2]
+
+
+def test_a_request_cut_short_is_answered_before_the_script_exits():
+    header = {"op": "simplify", "index_count": 3, "vertex_count": 3, "target_index_count": 3,
+              "target_error": 1.0}
+    whole = frame(header, np.arange(3, dtype="<u4").tobytes() + np.eye(3, dtype="<f4").tobytes())
+    reply = _node([str(SCRIPT)], whole[:-5], 60)
+    (size,) = struct.unpack_from("<I", reply)
+    assert json.loads(reply[4:4 + size]) == {
+        "refused": "truncated request: 43 bytes of body, fewer than its header declares",
+        "bytes": 0}
 
 
 def test_a_malformed_buffer_is_one_failed_record(tmp_path):
@@ -404,8 +425,8 @@ def test_a_malformed_buffer_is_one_failed_record(tmp_path):
     bad = bad.replace(positions=positions)
     record = run_job(Job("grid", "meshopt", 2), tmp_path / "cache", mesh=bad).record
     assert record["status"] == "failed"
-    assert record["error"] == ("simplify.mjs failed (exit status 2): position component 10 "
-                               "is not finite (NaN)")
+    assert record["error"] == ("simplify.mjs refused the request: position component 10 is "
+                               "not finite (NaN)")
     ok = run_job(Job("grid", "meshopt", 2), tmp_path / "cache", mesh=good).record
     assert ok["status"] == "ok", ok["error"]
     table = records_table([record, ok])
@@ -446,3 +467,13 @@ def test_a_wrong_package_version_is_unavailable(tmp_path, monkeypatch):
     assert node_problem() == ("needs meshoptimizer 1.3.0 from npm (version 0.22.0 is "
                               f"installed); install with: npm ci --prefix {tmp_path}")
     assert "(it is not installed)" in node_problem("gltfpack")
+
+
+def test_a_dead_worker_is_replaced_on_the_next_call():
+    run_method(Meshopt(), strip(), 2)
+    first = _WORKER._proc
+    first.kill()
+    first.wait()
+    out = run_method(Meshopt(), strip(), 2)
+    assert out.mesh.n_faces == 2
+    assert _WORKER._proc is not first and _WORKER._proc.poll() is None

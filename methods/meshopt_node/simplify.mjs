@@ -1,17 +1,20 @@
-// One meshoptimizer call for the bench suite's meshopt* rows (methods/meshopt.py).
+// meshoptimizer calls for the bench suite's meshopt* rows (methods/meshopt.py).
 //
-// Request on stdin:  u32 (little-endian) header length, the JSON header, then the buffers
-//   indices   index_count      x u32
-//   positions vertex_count * 3 x f32
-//   attributes vertex_count * attribute_count x f32   (attributes, update, permissive)
-//   lock      vertex_count     x u8                    (when header.lock is true)
-// Header: {op, index_count, vertex_count, attribute_count, weights, lock,
+// Reads requests from stdin until it ends, answers each on stdout, in order; one Node
+// process serves all the calls of a job process.
+// Request:  u32 (little-endian) header length, the JSON header, then `header.bytes` bytes:
+//   indices    index_count                      x u32
+//   positions  vertex_count * 3                 x f32
+//   attributes vertex_count * attribute_count   x f32  (when attribute_count > 0)
+//   lock       vertex_count                     x u8   (when header.lock is true)
+// Header: {op, bytes, index_count, vertex_count, attribute_count, weights, lock,
 //          target_index_count, target_error, flags}
 //   op: "simplify" | "attributes" | "update" | "sloppy" | "version"
-// Reply on stdout: u32 header length, the JSON header {index_count, error, scale, seconds,
-// version, node}, then the kept indices (index_count x u32) and, for "update", the
-// updated positions and attributes (as laid out in the request).
-// Any problem: one line on stderr and exit status 2 (the caller reports that line).
+// Reply: u32 header length, the JSON header {bytes, index_count, error, scale, seconds,
+// version, node}, then `bytes` bytes: the kept indices (index_count x u32) and, for
+// "update", the updated positions and attributes (laid out as in the request).
+// A request the script refuses gets the reply header {refused: "one line", bytes: 0}; a
+// request cut short by the end of stdin gets that reply too, then the script exits.
 
 import { readFileSync } from 'node:fs';
 import { performance } from 'node:perf_hooks';
@@ -21,14 +24,15 @@ const VERSION = JSON.parse(
 	readFileSync(new URL('./node_modules/meshoptimizer/package.json', import.meta.url), 'utf8')
 ).version;
 
+class Refused extends Error {}
+
 function fail(message) {
-	process.stderr.write(message.replace(/\s+/g, ' ').trim() + '\n');
-	process.exit(2);
+	throw new Refused(message.replace(/\s+/g, ' ').trim());
 }
 
 function slice(buffer, offset, bytes, Type, what) {
 	if (offset + bytes > buffer.length) {
-		fail(`truncated request: ${what} needs ${bytes} bytes, ${Math.max(0, buffer.length - offset)} left`);
+		fail(`malformed request: ${what} need ${bytes} bytes, the body has ${Math.max(0, buffer.length - offset)} left`);
 	}
 	// copy into a fresh, aligned buffer (the library writes back into some of them)
 	const copy = new Uint8Array(bytes);
@@ -42,37 +46,28 @@ function count(header, key) {
 	return value;
 }
 
-function parse(input) {
-	if (input.length < 4) fail(`truncated request: ${input.length} bytes, no header`);
-	const headerBytes = input.readUInt32LE(0);
-	if (4 + headerBytes > input.length) fail(`truncated request: header of ${headerBytes} bytes, ${input.length - 4} given`);
-	let header;
-	try {
-		header = JSON.parse(input.subarray(4, 4 + headerBytes).toString('utf8'));
-	} catch (err) {
-		fail(`request header is not JSON: ${err.message}`);
-	}
+function parse(header, body) {
 	if (header.op === 'version') return { header };
 	const indexCount = count(header, 'index_count');
 	const vertexCount = count(header, 'vertex_count');
 	const attributeCount = header.attribute_count === undefined ? 0 : count(header, 'attribute_count');
 	if (indexCount % 3 !== 0) fail(`index buffer of ${indexCount} indices is not whole triangles`);
-	let offset = 4 + headerBytes;
-	const indices = slice(input, offset, indexCount * 4, Uint32Array, 'the index buffer');
+	let offset = 0;
+	const indices = slice(body, offset, indexCount * 4, Uint32Array, 'the indices');
 	offset += indexCount * 4;
-	const positions = slice(input, offset, vertexCount * 12, Float32Array, 'the positions');
+	const positions = slice(body, offset, vertexCount * 12, Float32Array, 'the positions');
 	offset += vertexCount * 12;
 	let attributes = null;
 	if (attributeCount > 0) {
-		attributes = slice(input, offset, vertexCount * attributeCount * 4, Float32Array, 'the attributes');
+		attributes = slice(body, offset, vertexCount * attributeCount * 4, Float32Array, 'the attributes');
 		offset += vertexCount * attributeCount * 4;
 	}
 	let lock = null;
 	if (header.lock) {
-		lock = slice(input, offset, vertexCount, Uint8Array, 'the vertex locks');
+		lock = slice(body, offset, vertexCount, Uint8Array, 'the vertex locks');
 		offset += vertexCount;
 	}
-	if (offset !== input.length) fail(`malformed request: ${input.length - offset} bytes beyond the buffers the header declares`);
+	if (offset !== body.length) fail(`malformed request: ${body.length - offset} bytes beyond the buffers the header declares`);
 	for (let i = 0; i < indexCount; ++i) {
 		if (indices[i] >= vertexCount) fail(`index ${indices[i]} at position ${i} is out of range for ${vertexCount} vertices`);
 	}
@@ -125,22 +120,57 @@ function run(request) {
 	return [{ index_count: kept.length, error: resultError, scale, seconds }, parts];
 }
 
-const input = readFileSync(0);
-const request = parse(input);
-await MeshoptSimplifier.ready;
-let reply = { version: VERSION, node: process.version };
-let parts = [];
-if (request.header.op !== 'version') {
-	let result;
-	try {
-		result = run(request);
-	} catch (err) {
-		fail(`meshoptimizer ${VERSION}: ${err.message}`);
-	}
-	reply = { ...result[0], ...reply };
-	parts = result[1];
+function answer(reply, parts) {
+	const bytes = parts.reduce((n, p) => n + p.byteLength, 0);
+	const head = Buffer.from(JSON.stringify({ ...reply, bytes }), 'utf8');
+	const length = Buffer.alloc(4);
+	length.writeUInt32LE(head.length, 0);
+	process.stdout.write(Buffer.concat([length, head, ...parts.map((p) => Buffer.from(p.buffer, p.byteOffset, p.byteLength))]));
 }
-const head = Buffer.from(JSON.stringify(reply), 'utf8');
-const length = Buffer.alloc(4);
-length.writeUInt32LE(head.length, 0);
-process.stdout.write(Buffer.concat([length, head, ...parts.map((p) => Buffer.from(p.buffer, p.byteOffset, p.byteLength))]));
+
+function serve(header, body) {
+	try {
+		const request = parse(header, body);
+		const about = { version: VERSION, node: process.version };
+		if (header.op === 'version') return answer(about, []);
+		const [reply, parts] = run(request);
+		answer({ ...reply, ...about }, parts);
+	} catch (err) {
+		const message = err instanceof Refused ? err.message : `meshoptimizer ${VERSION}: ${err.message}`;
+		answer({ refused: message }, []);
+	}
+}
+
+await MeshoptSimplifier.ready;
+let pending = Buffer.alloc(0);
+process.stdin.on('data', (chunk) => {
+	pending = pending.length ? Buffer.concat([pending, chunk]) : chunk;
+	for (;;) {
+		if (pending.length < 4) return;
+		const headerBytes = pending.readUInt32LE(0);
+		if (pending.length < 4 + headerBytes) return;
+		let header;
+		try {
+			header = JSON.parse(pending.subarray(4, 4 + headerBytes).toString('utf8'));
+		} catch (err) {
+			answer({ refused: `request header is not JSON: ${err.message}` }, []);
+			process.exit(0); // the stream cannot be resynchronised
+		}
+		const bytes = Number.isInteger(header.bytes) && header.bytes >= 0 ? header.bytes : 0;
+		if (pending.length < 4 + headerBytes + bytes) return;
+		const body = pending.subarray(4 + headerBytes, 4 + headerBytes + bytes);
+		pending = pending.subarray(4 + headerBytes + bytes);
+		serve(header, body);
+	}
+});
+process.stdin.on('end', () => {
+	if (pending.length > 0) {
+		let what = `${pending.length} bytes`;
+		if (pending.length >= 4) {
+			const headerBytes = pending.readUInt32LE(0);
+			what = pending.length < 4 + headerBytes ? `header of ${headerBytes} bytes, ${pending.length - 4} given`
+				: `${pending.length - 4 - headerBytes} bytes of body, fewer than its header declares`;
+		}
+		answer({ refused: `truncated request: ${what}` }, []);
+	}
+});
