@@ -588,8 +588,20 @@ class Gltfpack(_Node):
         # reorder primitives) and not the temporary file as a source
         meta = {k: v for k, v in mesh.metadata.items() if k != "atlas"}
         if "atlas" in out.metadata:
-            meta["atlas"] = out.metadata["atlas"]
+            meta["atlas"] = _sources_from(out.metadata["atlas"], mesh.metadata.get("atlas"))
         return SimplifyResult(out.replace(metadata=meta), stats, stop_reason=reason)
+
+
+def _sources_from(table: dict, original: dict | None) -> dict:
+    """The material table read back from gltfpack's output, each texture's ``source``
+    the input material's of that name (not the temporary file it was read from)."""
+    sources = {m.get("name"): (m.get("texture") or {}).get("source")
+               for m in (original or {}).get("materials", [])}
+    table = {**table, "materials": [dict(m) for m in table["materials"]]}
+    for m in table["materials"]:
+        if m.get("texture") and sources.get(m.get("name")):
+            m["texture"] = {**m["texture"], "source": sources[m["name"]]}
+    return table
 
 
 def _glb_has_meshes(data: bytes) -> bool:

@@ -349,6 +349,8 @@ def test_gltfpack_keeps_each_material_of_a_multi_material_model():
     out = run_method(Gltfpack(), mesh, 992)  # 25 %
     assert abs(out.mesh.n_faces - 992) <= target_tolerance(992) and out.stop_reason is None
     assert [m["name"] for m in materials_of(out.mesh)] == ["bricks", "waves"]
+    assert [m["texture"]["source"] for m in materials_of(out.mesh)] == [
+        "procedural (bricks_texture)", "procedural (waves_texture)"]
     assert not mixed_faces(out.mesh).any()
     assert np.bincount(face_materials(out.mesh)).min() > 0.4 * out.mesh.n_faces
 
