@@ -45,13 +45,14 @@ import subprocess
 import tempfile
 import threading
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
-from bench.errors import MethodError, ParamError
+from bench.errors import MeshWarning, MethodError, ParamError
 from bench.mesh import Mesh
 from bench.method import Method, SimplifyResult, target_tolerance
 
@@ -572,10 +573,19 @@ class Gltfpack(_Node):
                     f"{mesh.name}: gltfpack left no triangles for a target of {target_faces} "
                     f"faces (with -se {p.target_error:g} its pruning removed every component); "
                     "ask for more faces or a lower target_error")
-            out = load_mesh(packed, name=mesh.name)
+            # what the reader would warn a user about (a non-manifold edge gltfpack
+            # made, a zero-area face dropped) describes the result: kept in its stats
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", MeshWarning)
+                out = load_mesh(packed, name=mesh.name)
+        notes = [str(w.message).replace(str(packed), "gltfpack's output") for w in caught
+                 if issubclass(w.category, MeshWarning)]
+        for w in caught:  # anything else is passed on as it came
+            if not issubclass(w.category, MeshWarning):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         stats = {"backend": f"gltfpack {GLTFPACK_VERSION} (npm, WebAssembly on Node)",
                  "library_version": GLTFPACK_VERSION, "gltfpack_args": " ".join(args),
-                 "gltfpack_seconds": seconds}
+                 "gltfpack_seconds": seconds, "read_back_notes": notes}
         reason = None
         if abs(out.n_faces - target_faces) > target_tolerance(target_faces):
             reason = (f"gltfpack stopped at {out.n_faces} faces for a target of "

@@ -363,6 +363,23 @@ def test_gltfpack_pruning_everything_is_a_clear_failure():
         run_method(Gltfpack(target_error=0.99), BUNNY_TEXTURED.load(), 200)
 
 
+def test_gltfpack_read_back_notes_stay_in_the_stats():
+    # three squares sharing one edge: gltfpack keeps the non-manifold edge, and the
+    # reader's warning about it is the result's note, not a warning about a user's file
+    positions, faces = [(0, 0, 0), (0, 0, 1)], []
+    for dx, dy in [(1, 0), (0, 1), (-1, -1)]:
+        a = len(positions)
+        positions += [(dx, dy, 0), (dx, dy, 1)]
+        faces += [(0, a, a + 1), (0, a + 1, 1)]
+    book = Mesh(np.array(positions, float), np.array(faces), name="book")
+    out = run_method(Gltfpack(), book, 5)  # pytest turns an escaping MeshWarning into an error
+    assert out.mesh.n_faces == 6  # within the tolerance of 2 faces
+    assert out.stats["read_back_notes"] == [
+        ("gltfpack's output: 1 non-manifold edges (more than two faces); allowed, but some "
+         "methods treat them as locked")]
+    assert run_method(Gltfpack(), strip(), 2).stats["read_back_notes"] == []
+
+
 def test_uv_weight_follows_the_readme_density_rule():
     mesh = grid()  # 32 triangles of UV area (1/4)^2 / 2 each
     assert uv_density_weight(mesh) == pytest.approx(1 / np.sqrt(1 / 32))
