@@ -220,6 +220,41 @@ def test_permissive_protect_keeps_the_seam_vertices():
     assert every.stats["protected_vertices"] == 48
 
 
+def two_material_grid(with_table: bool = True) -> Mesh:
+    """``grid(seam_at=2)`` with its two charts in two materials' tiles of an 8 x 4 atlas:
+    the left chart's u in [0, 0.25] (tile u 0-0.5), the right's in [0.75, 1] (tile u
+    0.5-1), one UV orientation; without the table the same UVs are one material."""
+    mesh = grid(seam_at=2)
+    uv = mesh.uv.copy()
+    right = uv[:, 0] >= 1
+    uv[:, 0] = np.where(right, 0.75 + (uv[:, 0] - 1.5) * 0.5, uv[:, 0] * 0.5)
+    if not with_table:
+        return mesh.replace(uv=uv)
+    table = {"gutter": 8, "size": [8, 4], "materials": [
+        {"name": "left", "tile": [0.0, 0.0, 0.5, 1.0]},
+        {"name": "right", "tile": [0.5, 0.0, 1.0, 1.0]}]}
+    return mesh.replace(uv=uv, texture=np.zeros((4, 8, 3), np.uint8),
+                        metadata={"atlas": table})
+
+
+@pytest.mark.parametrize("protect", ["orientation", "none"])
+def test_permissive_always_protects_material_boundaries(protect):
+    from bench.io.atlas import face_materials, mixed_faces
+
+    mesh = two_material_grid()
+    lock = protected_vertices(mesh, protect)
+    # the seam x = 2 is a material boundary: its 5 positions, both copies of each
+    assert np.count_nonzero(lock) == 10 and set(mesh.positions[lock > 0, 0]) == {2.0}
+    out = run_method(MeshoptPermissive(protect=protect), mesh, 2)
+    assert out.mesh.n_faces == 2
+    assert {(2, 0, 0), (2, 4, 0)} <= corners(out.mesh)  # the boundary's ends stay
+    assert not mixed_faces(out.mesh).any()
+    assert sorted(face_materials(out.mesh).tolist()) == [0, 1]  # one face each
+    # the same UVs as one material: the left chart is collapsed into the right one
+    one = run_method(MeshoptPermissive(protect=protect), two_material_grid(False), 2)
+    assert one.mesh.n_faces == 2 and min(x for x, _, _ in corners(one.mesh)) == 2
+
+
 def test_update_writes_back_positions_and_uvs():
     mesh = BUNNY_TEXTURED.load()
     plain = run_method(MeshoptAttributes(), mesh, 1000)
