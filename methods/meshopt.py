@@ -10,8 +10,10 @@ indices (and, for ``simplifyWithUpdate``, the updated vertices) on its stdout.
 their integrity hashes; ``scripts/setup.sh`` installs them (``npm ci``). Why Node and a
 kept process: docs/maintainers.md, "meshoptimizer on Node".
 
-Rows (the library's documentation is its README, sections named below; the npm
-package's README documents the same flags for the JavaScript interface):
+Rows (the library's documentation is its README, https://github.com/zeux/meshoptimizer,
+sections named below; the npm package's README, ``js/README.md`` there, documents the
+same flags and ``vertex_lock`` values for the JavaScript interface; gltfpack's options
+are its ``gltfpack -h``):
 
 - ``meshopt``: ``simplify``, no flags. Seams stay closed: the library infers them from
   split render vertices.
