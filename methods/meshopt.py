@@ -524,7 +524,9 @@ class GltfpackParams:
     removed), so a limit near 1 removes whole models (measured: bunny-textured and
     two-materials at 2 % left no triangle at -se 0.99). attributes is ``-sv`` ("simplify
     with vertex position and attribute optimization"), permissive ``-sp``, aggressive
-    ``-sa`` ("aggressively simplify to the target ratio disregarding quality").
+    ``-sa`` ("aggressively simplify to the target ratio disregarding quality"),
+    lock_border ``-slb`` ("lock border vertices during simplification to avoid gaps on
+    connected meshes"; it also turns gltfpack's pruning off).
     quantize=false passes ``-noq`` ("disable quantization"), so positions, UVs and
     normals come back as 32-bit floats, as the suite wrote them.
     """
@@ -533,6 +535,7 @@ class GltfpackParams:
     attributes: bool = True
     permissive: bool = False
     aggressive: bool = False
+    lock_border: bool = False
     quantize: bool = False
 
 
@@ -562,7 +565,8 @@ class Gltfpack(_Node):
         ratio = (int(target_faces) + 0.5) / mesh.n_faces  # float32 in gltfpack: floor safe
         args = ["-si", repr(ratio), "-se", repr(float(p.target_error))]
         args += (["-sv"] if p.attributes else []) + (["-sp"] if p.permissive else []) + \
-            (["-sa"] if p.aggressive else []) + ([] if p.quantize else ["-noq"])
+            (["-sa"] if p.aggressive else []) + (["-slb"] if p.lock_border else []) + \
+            ([] if p.quantize else ["-noq"])
         with tempfile.TemporaryDirectory(prefix="bench-gltfpack-") as tmp:
             source, packed = Path(tmp) / "in.glb", Path(tmp) / "out.glb"
             source.write_bytes(glb_bytes(mesh, name=mesh.name))

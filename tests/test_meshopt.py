@@ -388,6 +388,12 @@ def test_gltfpack_keeps_each_material_of_a_multi_material_model():
         "procedural (bricks_texture)", "procedural (waves_texture)"]
     assert not mixed_faces(out.mesh).any()
     assert np.bincount(face_materials(out.mesh)).min() > 0.4 * out.mesh.n_faces
+    # gltfpack simplifies each primitive (material) alone, so their common border can
+    # open (measured: 11 cracks); -slb locks it
+    assert seam_cracks(mesh, out.mesh) > 0
+    locked = run_method(Gltfpack(lock_border=True), mesh, 992)
+    assert "-slb" in locked.stats["gltfpack_args"].split()
+    assert seam_cracks(mesh, locked.mesh) == 0
 
 
 def test_gltfpack_pruning_everything_is_a_clear_failure():
