@@ -9,7 +9,8 @@ from pathlib import Path
 
 from bench.errors import InputError
 from bench.harness.check import make_baseline
-from bench.harness.results import load_records, write_atomic
+from bench.harness.results import load_records
+from bench.io.atomic import write_atomic
 
 
 def add_parser(sub, name: str) -> None:

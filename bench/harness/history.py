@@ -34,7 +34,8 @@ from bench.harness.check import (
 from bench.harness.report import as_dict, figure, html_page, plot_text, pyplot
 from bench.harness.report_images import RunFiles, Shown
 from bench.harness.report_table import esc
-from bench.harness.results import load_records, shading_label, write_atomic
+from bench.harness.results import load_records, shading_label
+from bench.io.atomic import write_atomic
 
 __all__ = ["Point", "find_runs", "history_table", "load_history",
            "write_history"]

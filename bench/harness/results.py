@@ -14,7 +14,7 @@ Schema (``schema`` = :data:`SCHEMA_VERSION`)::
                                 "address" and "attempts" (Dask)}},
      "created": ISO time}
 
-Records are written atomically (temporary file + rename), so an interrupted run leaves
+Records are written atomically (:func:`bench.io.atomic.write_atomic`), so an interrupted run leaves
 only complete records and ``--resume`` can trust what it finds. A job's images are
 written (atomically too) before its record, so a record also means its images exist.
 A record of a newer schema is refused; older ones would be migrated by
@@ -31,17 +31,16 @@ from __future__ import annotations
 
 import json
 import numbers
-import os
-import secrets
 import typing
 from dataclasses import fields
 from pathlib import Path
 
 from bench.errors import InputError
+from bench.io.atomic import write_atomic
 
 __all__ = ["CSV_COLUMNS", "SCHEMA_VERSION", "STATUSES", "load_record", "load_records",
-           "metric_columns", "record_problem", "records_table", "shading_label", "write_atomic",
-           "write_file", "write_record", "write_table"]
+           "metric_columns", "record_problem", "records_table", "shading_label", "write_file",
+           "write_record", "write_table"]
 
 SCHEMA_VERSION = 1
 
@@ -99,28 +98,6 @@ def write_file(path: Path, data: bytes) -> Path:
     never sees half a file, whoever else writes the same path."""
     path.parent.mkdir(parents=True, exist_ok=True)
     return write_atomic(path, data)
-
-
-def write_atomic(path: Path, data: str | bytes) -> Path:
-    """Write ``data`` (text as UTF-8) to ``path`` through a temporary file in the same
-    folder and a rename, so a reader (the report, ``--resume``, a browser) sees the old
-    file or the new one, never half of one. The temporary file is opened normally (not
-    by ``mkstemp``, which makes it 0600), so the result gets the permissions the umask
-    gives any new file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    try:
-        if isinstance(data, str):
-            with open(tmp, "x", encoding="utf-8") as f:
-                f.write(data)
-        else:
-            with open(tmp, "xb") as f:
-                f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
 
 
 def _jsonable(value):

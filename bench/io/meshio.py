@@ -44,13 +44,13 @@ import io
 import logging
 import os
 import re
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from bench.errors import InputError
 from bench.io.atlas import split_materials
+from bench.io.atomic import write_atomic
 from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
 from bench.mesh import Mesh
 
@@ -303,7 +303,7 @@ def _commit(files: list[tuple[Path, bytes]], inputs: list | None, force: bool) -
     unique = list(dict.fromkeys(p for p, _ in files))
     check_not_inputs(unique, inputs, force)
     for target, data in files:
-        _write_atomic(target, data)
+        write_atomic(target, data)
     return unique
 
 
@@ -797,14 +797,6 @@ def _one_mesh_per_group(groups: list):
         tree["nodes"] = [{"name": group, "mesh": i} for i, (group, _) in enumerate(groups)]
         tree["scenes"][0]["nodes"] = list(range(len(groups)))
     return merge
-
-
-def _write_atomic(path: Path, data: bytes) -> Path:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
-    return path
 
 
 def _decode(data: bytes) -> tuple[str, str]:
