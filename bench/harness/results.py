@@ -128,13 +128,15 @@ def load_record(path: Path) -> dict:
     return record
 
 
-def load_records(run_dir: Path, skipped: list[str] | None = None) -> list[dict]:
+def load_records(run_dir: Path, skipped: list[str] | None = None,
+                 paths: list[Path] | None = None) -> list[dict]:
     """All records under ``run_dir/records``, sorted by model, method, budget.
 
     A bad record (unreadable, malformed, or a link to a file outside the run folder)
     raises :class:`InputError`, unless ``skipped`` is a list: then its one-line reason is
     appended there and the other records are returned, so that one damaged file does not
-    hide a whole run from its report.
+    hide a whole run from its report. Given a list ``paths``, the file of each record
+    returned is appended to it, in the same order.
     """
     folder = Path(run_dir) / "records"
     if not folder.is_dir():
@@ -146,14 +148,17 @@ def load_records(run_dir: Path, skipped: list[str] | None = None) -> list[dict]:
         try:
             if not path.resolve().is_relative_to(inside):
                 raise InputError(f"{path}: links outside the run folder; not read")
-            records.append(load_record(path))
+            records.append((path, load_record(path)))
         except InputError as exc:
             if skipped is None:
                 raise
             skipped.append(str(exc))
-    return sorted(records, key=lambda r: (r["job"]["model"], r["job"]["label"],
-                                          -r["job"]["target_faces"],
-                                          shading_label(r["job"]["protocol"])))
+    records.sort(key=lambda pr: (pr[1]["job"]["model"], pr[1]["job"]["label"],
+                                 -pr[1]["job"]["target_faces"],
+                                 shading_label(pr[1]["job"]["protocol"])))
+    if paths is not None:
+        paths.extend(p for p, _ in records)
+    return [r for _, r in records]
 
 
 def record_problem(record) -> str | None:
