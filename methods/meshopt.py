@@ -40,7 +40,7 @@ import numpy as np
 
 from bench.errors import MethodError, ParamError
 from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult, target_tolerance
+from bench.method import Method, SimplifyResult, bounded, target_tolerance
 
 __all__ = ["Meshopt", "MeshoptAttributes", "MeshoptSloppy", "simplify_index_buffer",
            "uv_density_weight"]
@@ -70,7 +70,7 @@ class MeshoptParams:
     """
 
     bound_error: bool = False
-    target_error: float = 0.01  #: used only with bound_error
+    target_error: float = bounded(0.01, ge=0)  #: used only with bound_error
     lock_border: bool = False  #: SIMPLIFY_LOCK_BORDER: never move border vertices
     prune: bool = False  #: SIMPLIFY_PRUNE: remove isolated components (needs bound_error)
     error_absolute: bool = False  #: SIMPLIFY_ERROR_ABSOLUTE: errors in model units
@@ -90,8 +90,8 @@ class MeshoptAttributesParams(MeshoptParams):
     era: it has SIMPLIFY_PRUNE but not meshopt_simplifyPrune.)
     """
 
-    normal_weight: float = 0.5
-    uv_weight_scale: float = 1.0
+    normal_weight: float = bounded(0.5, ge=0)
+    uv_weight_scale: float = bounded(1.0, ge=0)
 
 
 @dataclass
@@ -100,7 +100,7 @@ class MeshoptSloppyParams:
     bound as in :class:`MeshoptParams`, always relative to the mesh's extent."""
 
     bound_error: bool = False
-    target_error: float = 0.01  #: used only with bound_error
+    target_error: float = bounded(0.01, ge=0)  #: used only with bound_error
 
 
 class Meshopt(Method):
