@@ -671,8 +671,10 @@ case("history dates with offsets are instants", "history", "early", "later", "--
      expect="ok", files=history_runs, after=later_fails,
      pattern=r"^bench history: 2 runs, 1 that bench check would have failed; wrote "
      r"hist/index\.html$")
-case("history one folder under two names", "history", "early", "./early/", "--out", "hist",
-     expect="ok", files=history_runs, pattern=r"^bench history: 1 runs, 0 that")
+case("history one folder under three names", "history", "early", "sub/../early", "alias",
+     "--out", "hist", expect="ok", files=both(history_runs, lambda d: (d / "sub").mkdir(),
+                                              lambda d: (d / "alias").symlink_to("early")),
+     pattern=r"^bench history: 1 runs, 0 that")
 case("history --out an existing file", "history", "early", "--out", "taken.txt",
      files=both(history_runs, a_file("taken.txt")),
      pattern=r"^--out taken\.txt: exists and is not a folder; give a folder")
@@ -995,9 +997,9 @@ def _numeric_fields():
 
     out = []
     for entry in registry("method"):
-        if entry.problem and "failed" in entry.problem:
+        if not entry.available:
             continue
-        cls = entry.definition()
+        cls = entry.load()
         hints = typing.get_type_hints(cls.Params)
         for f in dataclasses.fields(cls.Params):
             if hints[f.name] in (int, float):
@@ -1015,7 +1017,7 @@ def test_every_parameter_is_checked_by_the_shared_rule(method, name, kind, bound
     from bench.method import parse_params
     from bench.registry import registry
 
-    cls = registry("method").entry(method).definition()
+    cls = registry("method").load(method)
     cls(parse_params(cls.Params, []))  # the defaults pass
     bad = ["nan", "inf", "-inf"] if kind is float else []
     step = 1 if kind is int else 1e-9

@@ -723,21 +723,24 @@ def _check_signature(path: Path, ext: str, source: str) -> None:
     UTF-8 text."""
     if ext not in (".off", ".stl"):
         return
-    data = path.read_bytes()
     if ext == ".off":
-        text, _ = _decode(data)
-        if not re.match(r"\s*(#[^\n]*\n\s*)*[A-Z0-9]*OFF\b", text):
+        with open(path, "rb") as f:  # the header, after any comments
+            text = f.read(1 << 16).removeprefix(b"\xef\xbb\xbf").decode("latin-1")
+        if not re.match(r"\s*(#[^\n]*\n\s*)*[A-Za-z0-9]*OFF\b", text):
             raise InputError(f"{source}: not an OFF file (it does not begin with an OFF "
                              "header); check the file and its extension")
         return
-    count = int.from_bytes(data[80:84], "little") if len(data) >= 84 else None
-    if count is not None and len(data) == 84 + 50 * count:
+    size = os.stat(path).st_size
+    with open(path, "rb") as f:
+        head = f.read(84)
+    count = int.from_bytes(head[80:84], "little") if size >= 84 else None
+    if count is not None and size == 84 + 50 * count:
         return  # binary
     try:
-        data.decode("utf-8")
+        path.read_bytes().decode("utf-8")
     except UnicodeDecodeError:
         size = "shorter than a binary STL's 84-byte header" if count is None else \
-            f"{len(data)} bytes where a binary STL of {count} triangles has {84 + 50 * count}"
+            f"{size} bytes where a binary STL of {count} triangles has {84 + 50 * count}"
         raise InputError(f"{source}: not an STL file (not ASCII STL text, and {size}); "
                          "the file is corrupt or of another format") from None
 
