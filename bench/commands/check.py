@@ -88,7 +88,8 @@ def _print_text(shown: list[Row]) -> None:
 def markdown(shown: list[Row], verdict: str, summary: str) -> str:
     """The comparison as GitHub-flavoured Markdown: the verdict, the counts, and a table
     of ``shown`` with the change in per cent; failing marks in bold. Every cell from a
-    file is escaped, so a job name cannot end a cell, start markup or hold HTML."""
+    file is escaped, so a job name cannot end a cell, start markup, hold HTML, mention
+    anyone or link anywhere (:func:`_md`)."""
     lines = [f"**bench check: {_md(verdict)}**", "", _md(summary)]
     if shown:
         lines += ["", "| job | metric | baseline | current | change | mark |",
