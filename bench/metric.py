@@ -43,6 +43,8 @@ NEEDS = {
     "silhouette": "ctx['silhouette']: metrics.silhouette.SilhouetteHistogram of the "
                   "simplified mesh over the 20 dodecahedron views",
     "topology": "ctx['topology']: the dict of metrics.topology.counts",
+    "parts": "ctx['parts']: the dict of metrics.parts.parts_lost (components and materials "
+             "of the original with no face left)",
 }
 
 

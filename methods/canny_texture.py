@@ -76,7 +76,7 @@ class CannyTexture(Method):
     # 5: the penalty in the base cost's units (canny_units="base-cost"): as an area
     # ratio added to quadrics at unit diagonal it outweighed every quadric cost (by
     # 4 million times the mean on the torus) and so depended on our normalisation
-    version = "5"
+    version = "6"  # 6: the engine's placement guard, parts and materials kept
     summary = "quadric (or memoryless) cost + Canny texture-border penalty (own engine)"
     reference = ("González, Castelló & Chover, A texture-based metric extension for "
                  "simplification methods, GRAPP 2007")

@@ -228,7 +228,9 @@ def rebuild_normals(mesh: Mesh, angle: float = NORMALS_ANGLE) -> Mesh:
 
 class EntropyTwin(Method):
     name = "entropy-twin"
-    version = "2"  # 2: the texture-quadric pre-simplification merges each wedge once
+    # 2: the texture-quadric pre-simplification merges each wedge once; 3: the engine's
+    # placement guard, parts and materials kept
+    version = "3"
     summary = ("half-edge collapses by viewpoint-entropy change over 20 views, twin edges "
                "at seams, UV correction, normals rebuilt")
     reference = ("González, Gumbau, Chover & Castelló, Mesh simplification for interactive "

@@ -62,7 +62,7 @@ PRESIMPLIFY_RATIO = 10
 
 class ImageDriven(Method):
     name = "image-driven"
-    version = "1"
+    version = "2"  # 2: the engine's placement guard, parts and materials kept
     summary = ("collapse cost = change of the squared luminance error over 20 views, "
                "incremental numba renderer")
     reference = "Lindstrom & Turk, Image-driven simplification, ACM TOG 19(3), 2000"

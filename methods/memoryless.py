@@ -29,7 +29,9 @@ __all__ = ["Memoryless"]
 
 class Memoryless(Method):
     name = "memoryless"
-    version = "3"  # 2: R^5 texture coordinates; 3: superseded queue entries dropped
+    # 2: R^5 texture coordinates; 3: superseded queue entries dropped; 4: the engine's
+    # placement guard (its fallback for a degenerate profile), parts and materials kept
+    version = "4"
     summary = "Lindstrom-Turk 98/99 volume and boundary preserving collapses (own engine)"
     reference = ("Lindstrom & Turk, Fast and memory efficient polygonal simplification, "
                  "IEEE Visualization 1998")

@@ -132,7 +132,8 @@ class PerceptualMT(Method):
     # 3: the engine merges each wedge pair once (texture quadrics were counted twice);
     # 4: a node's view error is the largest of its subtree and refinement ranks equal
     #    errors by node index, so a view's cut does not depend on where refinement starts
-    version = "4"
+    # 5: the engine's placement guard, parts and materials kept (the MT's collapses)
+    version = "5"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "

@@ -31,8 +31,9 @@ __all__ = ["Quadric"]
 class Quadric(Method):
     name = "quadric"
     # 2: texture quadrics (GH98) on meshes with UVs; 3: a wedge merges once per
-    # collapse (its quadric and UV were counted once per face of the edge)
-    version = "3"
+    # collapse (its quadric and UV were counted once per face of the edge); 4: the
+    # placement guard, parts and materials kept (methods.engine: real assets)
+    version = "4"
     summary = "Garland-Heckbert 97/98 quadrics (texture per wedge) on the suite's engine"
     reference = ("Garland & Heckbert, Surface simplification using quadric error metrics, "
                  "SIGGRAPH 1997; ... with color and texture, IEEE Visualization 1998")

@@ -235,6 +235,12 @@ def _shared_inputs(needs: set, original: Mesh, simplified: Mesh, protocol: Proto
         t = time.perf_counter()
         ctx["topology"] = topology.counts(original, simplified)
         seconds["topology"] = time.perf_counter() - t
+    if "parts" in needs:
+        from metrics.parts import parts_lost
+
+        t = time.perf_counter()
+        ctx["parts"] = parts_lost(original, simplified)
+        seconds["parts"] = time.perf_counter() - t
     return ctx
 
 

@@ -31,7 +31,8 @@ DEFAULT_RATIOS = (0.02, 0.01)
 
 def add_parser(sub, name: str) -> None:
     p = sub.add_parser(name, help="run the benchmark and write a report", description=__doc__)
-    p.add_argument("--models", help="comma-separated model names or mesh files (default: bunny,torus)")
+    p.add_argument("--models", help="comma-separated model names or mesh files (default: "
+                   "bunny,torus); MODEL::texture=IMAGE gives a model a texture")
     p.add_argument("--methods", help="comma-separated method names; NAME[key=value,...] sets "
                    "parameters (default: every available method)")
     budget = p.add_mutually_exclusive_group()
@@ -178,6 +179,13 @@ def run(args) -> int:
     _check_out(out)
     suite = get_suite(args.suite) if args.suite else None
     models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
+    if suite and suite.assets and not args.models:
+        present, missing = suite.present_assets()
+        models += present
+        if missing:
+            print(f"bench: note: {len(missing)} real asset(s) of the suite not found, left "
+                  f"out: {', '.join(missing)} (set BENCH_ASSETS to their folder)",
+                  file=sys.stderr)
     methods = registry("method")
     if args.methods:
         variants = parse_variants(args.methods)
@@ -282,8 +290,13 @@ def finish(out: Path, build_report: bool = True, single_file: bool = False) -> i
         cols.insert(cols.index("seconds"), "exterior_share")
     with_pd_options(lambda: print(table[cols].to_string(index=False)))
     failed = table[table.status == "failed"]
+    off = table[table.status == "ok, off target"]
     for path in written:
         print(f"bench: wrote {path}", file=sys.stderr)
+    if len(off):
+        print(f"bench: {len(off)} of {len(table)} results ended more than 10 % from their "
+              "target (status 'ok, off target'; the report's Failures section says why)",
+              file=sys.stderr)
     if len(failed):
         print(f"bench: {len(failed)} of {len(table)} jobs failed (see the report or "
               f"{out}/records)", file=sys.stderr)

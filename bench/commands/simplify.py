@@ -38,14 +38,15 @@ from bench.io.meshio import (
     save_mesh,
 )
 from bench.method import parse_params, resolve_target, run_method
-from bench.models import resolve_model
+from bench.models import parse_model_spec, resolve_model
 from bench.registry import registry
 
 
 def add_parser(sub, name: str) -> None:
     p = sub.add_parser(name, help="simplify one mesh and write the result (or an LOD chain)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("input", metavar="IN_OR_MODEL", help="a mesh file or a model name (bench list models)")
+    p.add_argument("input", metavar="IN_OR_MODEL", help="a mesh file or a model name (bench list "
+                   "models), with options as MODEL::texture=IMAGE")
     p.add_argument("output", metavar="OUT", help="output file (.obj, .ply, .glb, .gltf, .off, .stl)")
     p.add_argument("--method", "-m", required=True, help="method name (bench list methods)")
     target = p.add_mutually_exclusive_group(required=True)
@@ -62,6 +63,9 @@ def add_parser(sub, name: str) -> None:
                    help="LOD chain: evaluate each level against the input under the protocol "
                    "(d_rms, FLIP, Hausdorff, ...) into OUT.lods.json; renders 24 views per "
                    "level, slow on a CPU-only machine")
+    p.add_argument("--texture", metavar="IMAGE", help="the input's texture image, in place of "
+                   "its own (an OBJ with UVs and no mtllib has none); the same as "
+                   "IN_OR_MODEL::texture=IMAGE")
     p.add_argument("--param", "-p", action="append", default=[], metavar="KEY=VALUE",
                    help="method parameter (repeatable)")
     p.add_argument("--force", action="store_true",
@@ -93,6 +97,11 @@ def run(args) -> int:
         use_threads(whole_number(args.threads, "--threads"))
     method_cls = registry("method").load(args.method)
     check_output_path(args.output)  # fail before the work, not after
+    if args.texture is not None:
+        if "texture" in parse_model_spec(args.input)[1]:
+            raise InputError(f"--texture {args.texture}: the input {args.input!r} names a "
+                             "texture already; give it once")
+        args.input = f"{args.input}::texture={args.texture}"
     params = parse_params(method_cls.Params, args.param)
     faces = parse_levels(args.faces, "--faces", int) if args.faces is not None else None
     ratios = parse_levels(args.ratios, "--ratios", float) if args.ratios is not None else None
@@ -107,7 +116,8 @@ def run(args) -> int:
     target = resolve_target(mesh.n_faces, faces[0] if faces else None,
                             ratios[0] if ratios else None)
     result = run_method(method_cls(params), mesh, target)
-    written = save_mesh(result.mesh, args.output, inputs=inputs, force=args.force)
+    written = save_mesh(_surfaced(result.mesh, mesh), args.output, inputs=inputs,
+                        force=args.force)
     seconds = result.stats.get("wall_seconds", 0.0)
     print(f"{mesh.name}: {mesh.n_faces} -> {result.mesh.n_faces} faces "
           f"({result.mesh.n_vertices} vertices) with {method_cls.name} in {seconds:.3f} s; "
@@ -156,7 +166,8 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
     levels = build_levels(method, mesh, targets, chain=args.chain, protocol=protocol,
                           progress=True, on_level=report)
     seconds = time.perf_counter() - start
-    files = save_lods([(level_name(0), mesh)] + [(lv.name, lv.result.mesh) for lv in levels],
+    files = save_lods([(level_name(0), mesh)] + [(lv.name, _surfaced(lv.result.mesh, mesh))
+                                                 for lv in levels],
                       out, inputs=inputs, force=args.force)
     record = sidecar(mesh, method, levels, args.chain, files, protocol, seconds=seconds,
                      source=args.input)
@@ -172,10 +183,20 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
     return 0
 
 
+def _surfaced(result, mesh):
+    """``result`` with the input ``mesh``'s material finish (its roughness, as the loader
+    recorded it), which a method need not carry over, so the output is written with it."""
+    if "material" not in mesh.metadata:
+        return result
+    return result.replace(metadata={**result.metadata, "material": mesh.metadata["material"]})
+
+
 def _inputs(mesh, outputs: list[Path], force: bool) -> list:
     """The files ``mesh`` was read from (:func:`bench.io.meshio.input_files`), after
     refusing, before the work, an output mesh file that is one of them; the writer
     checks every file it writes (materials, textures) again."""
     inputs = input_files(mesh.metadata.get("source"))
+    if mesh.metadata.get("texture"):  # given as MODEL::texture=IMAGE: never written over
+        inputs.append((Path(mesh.metadata["texture"]), "texture"))
     check_not_inputs(outputs, inputs, force)
     return inputs

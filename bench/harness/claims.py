@@ -6,7 +6,8 @@ how — the ratio of one method variant's value to another's, or one variant's v
 its own — with our threshold and the paper's own figure where it gives one.
 :func:`evaluate_claim` reads only records (never a number typed in): every (model,
 budget, evaluation shading) where the records it needs exist and are ``ok`` gives one
-row of evidence, and the rows give the verdict:
+row of evidence (for the metrics of :data:`ANY_TARGET`, which mean the same at any face
+count, ``ok, off target`` records count too), and the rows give the verdict:
 
 =====================  ==================================================================
 verdict                when
@@ -34,6 +35,11 @@ HOLDING = ("holds", "holds, weaker")
 #: A claim's metric with this prefix is a statistic of the method's record
 #: (``record["stats"]``), not a protocol metric.
 STATS_PREFIX = "stats."
+#: A claim's metric: the record's distance from its target, |faces - target| / target.
+TARGET_DISTANCE = "target_distance"
+#: Metrics whose claims read results off their target too (what they say does not
+#: depend on the face count reached).
+ANY_TARGET = frozenset({TARGET_DISTANCE, "components_lost", "materials_lost"})
 
 
 @dataclass(frozen=True)
@@ -141,7 +147,10 @@ def _in_budget(claim: Claim, record: dict) -> bool:
 def _value(record: dict, metric: str) -> float:
     """``metric`` of ``record``: a protocol metric, or with the prefix ``stats.`` a
     statistic the method recorded (``stats.crossing_share_after``); NaN if missing."""
-    if metric.startswith(STATS_PREFIX):
+    if metric == TARGET_DISTANCE:
+        faces, target = (record.get("metrics") or {}).get("faces"), record["job"]["target_faces"]
+        value = abs(faces - target) / target if isinstance(faces, (int, float)) else None
+    elif metric.startswith(STATS_PREFIX):
         value = (record.get("stats") or {}).get(metric[len(STATS_PREFIX):])
     else:
         value = (record.get("metrics") or {}).get(metric)
@@ -159,10 +168,11 @@ def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
     if claim.against:
         wanted[canonical_label(claim.against)] = "against"
     cells: dict[tuple, dict] = {}
+    statuses = ("ok", "ok, off target") if claim.metric in ANY_TARGET else ("ok",)
     for r in records:
         job = r.get("job") or {}
         role = wanted.get(canonical_label(job.get("label", "")))
-        if role is None or r.get("status") != "ok":
+        if role is None or r.get("status") not in statuses:
             continue
         if claim.models and job["model"] not in claim.models:
             continue

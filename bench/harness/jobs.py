@@ -49,7 +49,13 @@ import numpy as np
 
 from bench.errors import BenchError
 from bench.harness.keys import job_key
-from bench.harness.results import SCHEMA_VERSION, shading_label, write_file, write_record
+from bench.harness.results import (
+    SCHEMA_VERSION,
+    result_status,
+    shading_label,
+    write_file,
+    write_record,
+)
 from metrics.protocol import Protocol
 
 __all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "canonical_label", "environment",
@@ -309,7 +315,8 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     ev, view_stats = evaluate_result(mesh, simplified, job.protocol, reference)
     stats.update(view_stats)
     record.update(metrics=ev.metrics, per_view=ev.per_view, seconds=ev.seconds,
-                  silhouette_histogram=ev.silhouette_histogram, status="ok")
+                  silhouette_histogram=ev.silhouette_histogram,
+                  status=result_status(simplified.mesh.n_faces, job.target_faces))
     if ev.errors:  # metrics that raised: the job is ok, those values are missing
         record["metric_errors"] = ev.errors
     _sheet_files(job, mesh, reference, ev.images, result)

@@ -45,6 +45,8 @@ from bench.harness.report_table import cell as _cell
 from bench.harness.report_table import esc as _esc
 from bench.harness.report_viewer import VIEWER_SCRIPT, Viewers, single_file_note
 from bench.harness.results import (
+    STATUSES,
+    evaluated,
     image_settings,
     load_records,
     records_table,
@@ -69,7 +71,7 @@ th{background:#f3f3f3}td:first-child,td:nth-child(2){text-align:left}
 th[aria-sort=ascending]::after{content:" \\25B2"}th[aria-sort=descending]::after{content:" \\25BC"}
 .best{font-weight:bold;background:#dff0d8}
 td.reason{max-width:30em;overflow:hidden;text-overflow:ellipsis}
-.failed{background:#fde2e2}.skipped{color:#888}
+.failed{background:#fde2e2}.skipped{color:#888}.ok-off-target,.off-target{background:#fff4d6}
 .sheet{display:grid;grid-template-columns:repeat(4,260px);gap:4px;margin:.5em 0 1.5em}
 .scroll{overflow-x:auto}
 .sheet figure{margin:0;text-align:center;font-size:.75em}
@@ -211,13 +213,13 @@ def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
     """A model's heading, plots, exterior table, silhouette histograms, comparison grids,
     3D view (a note instead with ``viewers`` None: ``--single-file``) and sheets."""
     own = [r for r in records if r["job"]["model"] == model]
-    ok = table[(table.model == model) & (table.status == "ok")]
+    ok = table[(table.model == model) & table.status.isin(STATUSES[:2])]
     images = {id(r): sheet_images(run_dir, r, refused, out)  # by record: a key may be
-              for r in own if r["status"] == "ok"}            # missing in an older run
+              for r in own if evaluated(r)}                   # missing in an older run
     if viewers is None:
         view = single_file_note(own)
     else:
-        keys = {id(r): _image_folders(run_dir, r)[0] for r in own if r["status"] == "ok"}
+        keys = {id(r): _image_folders(run_dir, r)[0] for r in own if evaluated(r)}
         view = viewers.section(own, keys, slug, len(_shadings(own)) > 1)
     return [f"<h2 id='m-{slug}'>{_esc(model)}</h2>", _plots(ok, out, slug),
             grid_links(own, images, slug), _exterior_table(ok), _silhouette_plot(own, out, slug),
@@ -265,7 +267,7 @@ def _evaluation_words(protocol: dict) -> str:
 
 
 def _protocol_note(records: list[dict]) -> str:
-    ok = [r for r in records if r["status"] == "ok"]
+    ok = [r for r in records if evaluated(r)]
     if not ok:
         return "<p class='note'>No successful jobs.</p>"
     p = ok[0]["job"]["protocol"]
@@ -408,7 +410,7 @@ def _exterior_faces(faces, share) -> int | None:
 
 
 def _silhouette_plot(records: list[dict], out, slug: str) -> str:
-    ok = [r for r in records if r["status"] == "ok" and r.get("silhouette_histogram")]
+    ok = [r for r in records if evaluated(r) and r.get("silhouette_histogram")]
     if not ok:
         return ""
     plt = pyplot()
@@ -441,7 +443,7 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out, images:
     several = len(_shadings(records)) > 1
     parts = []
     for r in records:
-        if r["status"] != "ok":
+        if not evaluated(r):
             continue
         job = r["job"]
         shading = shading_label(job["protocol"])
@@ -516,7 +518,7 @@ def _timing(records: list[dict]) -> str:
     rows = []
     several = len(_shadings(records)) > 1  # then each shading's job simplified on its own
     for r in records:
-        if r["status"] != "ok":
+        if not evaluated(r):
             continue
         s = r.get("stats") or {}
         label = r["job"]["label"] + (f" ({shading_label(r['job']['protocol'])} job)"
@@ -535,14 +537,20 @@ _TIMING_HEAD = ("<tr><th>model</th><th>method</th><th>faces before</th><th>faces
 
 
 def _failures(records: list[dict]) -> str:
-    """Failed and skipped jobs with their errors, then metrics that raised in ok jobs
-    (whose other figures stand)."""
-    bad = [r for r in records if r["status"] != "ok"]
-    partial = [r for r in records if r["status"] == "ok" and r.get("metric_errors")]
-    if not bad and not partial:
+    """Failed and skipped jobs with their errors, results off their target with the
+    reason the method gave, then metrics that raised in evaluated jobs (whose other
+    figures stand)."""
+    bad = [r for r in records if not evaluated(r)]
+    off = [r for r in records if r["status"] == STATUSES[1]]
+    partial = [r for r in records if evaluated(r) and r.get("metric_errors")]
+    if not bad and not partial and not off:
         return "<p>None.</p>"
     out = [f"<h3 class='{_esc(r['status'])}'>{_job_title(r)}: {_esc(r['status'])}</h3>"
            f"<pre>{_esc(r.get('error'))}</pre>" for r in bad]
+    out += [f"<h3 class='off-target'>{_job_title(r)}: off target, "
+            f"{_esc((r.get('metrics') or {}).get('faces'))} faces</h3>"
+            f"<pre>{_esc(r.get('stop_reason') or 'the method gave no reason')}</pre>"
+            for r in off]
     out += [f"<h3>{_job_title(r)}: metric {_esc(name)} failed</h3>"
             f"<pre>{_esc(error)}</pre>"
             for r in partial for name, error in r["metric_errors"].items()]

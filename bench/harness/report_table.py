@@ -138,7 +138,7 @@ def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict) -
             text = f"<a href='{links[row[c]]}'>{text}</a>"
         cells.append(f"<td class='best'>{text}</td>" if (i, c) in best else f"<td>{text}</td>")
     status = row["status"]
-    cls = f" class='{esc(status)}'" if status != "ok" else ""
+    cls = f" class='{esc(status.replace(', ', '-').replace(' ', '-'))}'" if status != "ok" else ""
     return f"<tr{cls}>{''.join(cells)}</tr>"
 
 
@@ -155,6 +155,11 @@ def _reason(record: dict) -> str:
     characters, control characters shown escaped; empty for an ok job."""
     if record.get("status") == "ok":
         return ""
+    if record.get("status") == "ok, off target":
+        faces = (record.get("metrics") or {}).get("faces")
+        text = _printable(record.get("stop_reason") or
+                          f"{faces} faces for a target of {record['job']['target_faces']}")
+        return text if len(text) <= _REASON_CHARS else text[:_REASON_CHARS - 1] + "…"
     error = record.get("error")
     lines = [line for line in str(error).splitlines() if line.strip()] if error else []
     text = _printable(lines[0].strip()) if lines else "(no reason given)"

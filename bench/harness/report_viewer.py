@@ -125,7 +125,7 @@ def glb_problem(data: bytes) -> str | None:
 
 def single_file_note(records: list[dict]) -> str:
     """What a ``--single-file`` report says instead of a model's 3D view."""
-    if not any(r["status"] == "ok" for r in records):
+    if not any(r["status"] in ("ok", "ok, off target") for r in records):
         return ""
     return ("<h3>3D view</h3><p class='note'>Left out of this single-file report: the 3D "
             "view loads three.js and the meshes as files of the run folder "
@@ -216,7 +216,7 @@ class Viewers:
         from bench.harness.jobs import mesh_paths
         from bench.harness.results import shading_label
 
-        ok = [r for r in records if r["status"] == "ok" and id(r) in keys]
+        ok = [r for r in records if r["status"] in ("ok", "ok, off target") and id(r) in keys]
         if not ok:
             return ""
         ok.sort(key=lambda r: (-r["job"]["target_faces"], r["job"]["label"]))

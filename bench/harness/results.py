@@ -14,9 +14,10 @@ Schema (``schema`` = :data:`SCHEMA_VERSION`)::
                                 "address" and "attempts" (Dask)}},
      "created": ISO time}
 
-Records are written atomically (:func:`bench.io.atomic.write_atomic`), so an interrupted run leaves
-only complete records and ``--resume`` can trust what it finds. A job's images are
-written (atomically too) before its record, so a record also means its images exist.
+Records are written atomically (:func:`bench.io.atomic.write_atomic`), so an
+interrupted run leaves only complete records and ``--resume`` can trust what it finds.
+A job's images are written (atomically too) before its record, so a record also means
+its images exist.
 A record of a newer schema is refused; older ones would be migrated by
 :func:`load_record`.
 
@@ -38,14 +39,45 @@ from pathlib import Path
 from bench.errors import InputError
 from bench.io.atomic import write_atomic
 
-__all__ = ["CSV_COLUMNS", "SCHEMA_VERSION", "STATUSES", "load_record", "load_records",
-           "metric_columns", "record_problem", "records_table", "shading_label", "write_file",
-           "write_record", "write_table"]
+__all__ = [
+    "CSV_COLUMNS",
+    "OFF_TARGET",
+    "SCHEMA_VERSION",
+    "STATUSES",
+    "evaluated",
+    "load_record",
+    "load_records",
+    "metric_columns",
+    "record_problem",
+    "records_table",
+    "result_status",
+    "shading_label",
+    "write_file",
+    "write_record",
+    "write_table",
+]
 
 SCHEMA_VERSION = 1
 
-#: The statuses a record can have.
-STATUSES = ("ok", "failed", "skipped")
+#: The statuses a record can have: ``ok``, ``ok, off target`` (evaluated, but its face
+#: count is more than :data:`OFF_TARGET` away from the target: compared with nothing
+#: at another face count, never marked best), ``failed``, ``skipped``.
+STATUSES = ("ok", "ok, off target", "failed", "skipped")
+OK = "ok"
+OFF_TARGET_STATUS = "ok, off target"
+#: The relative distance from its target beyond which a result is off target.
+OFF_TARGET = 0.10
+
+
+def evaluated(record: dict) -> bool:
+    """True for a record with figures: ``ok`` or ``ok, off target``."""
+    return record.get("status") in (OK, OFF_TARGET_STATUS)
+
+
+def result_status(faces: int, target: int) -> str:
+    """``ok`` when ``faces`` is within :data:`OFF_TARGET` of ``target``, else ``ok, off
+    target``."""
+    return OK if abs(faces - target) <= OFF_TARGET * target else OFF_TARGET_STATUS
 
 #: The leading columns of results.csv, in order (DESIGN "Results"; issue "runner").
 #: ``shading`` is the evaluation shading (:func:`shading_label`); ``exterior_share`` is
@@ -195,7 +227,7 @@ def record_problem(record) -> str | None:
         return problem
     if record.get("error") is not None and not isinstance(record["error"], str):
         return f"'error' must be a string or null, got {_kind(record['error'])}"
-    ok = record["status"] == "ok"
+    ok = evaluated(record)
     for name, check in _PARTS.items():
         value = record.get(name)
         if value is None:

@@ -53,8 +53,8 @@ def remaining(jobs: list[Job], run_dir: Path) -> list[Job]:
     def finished(job: Job) -> bool:
         path = Path(run_dir) / "records" / f"{job.key}.json"
         try:
-            return json.loads(path.read_text(encoding="utf-8")).get("status") in ("ok",
-                                                                                 "skipped")
+            return json.loads(path.read_text(encoding="utf-8")).get("status") in (
+                "ok", "ok, off target", "skipped")
         except (OSError, ValueError, AttributeError):
             return False
 

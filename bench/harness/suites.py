@@ -65,12 +65,21 @@ refines every view from scratch, at 98 % under both settings.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 from bench.harness.claims import Claim
 
 __all__ = ["Suite", "SUITES", "get_suite", "evaluation_protocols", "SHADINGS",
-           "PROTOCOL_OPTIONS"]
+           "PROTOCOL_OPTIONS", "assets_folder"]
+
+
+def assets_folder() -> Path:
+    """Where suites find real assets the project does not ship: ``$BENCH_ASSETS``, else
+    ``shared/assets`` beside the project's folder."""
+    env = os.environ.get("BENCH_ASSETS")
+    return Path(env) if env else Path(__file__).resolve().parents[3] / "shared" / "assets"
 
 #: Evaluation shadings the protocol knows.
 SHADINGS = ("flat", "gouraud")
@@ -96,6 +105,28 @@ class Suite:
     #: to the suite's models and budgets unless it narrows them itself, and to the
     #: suite's evaluation label (shading and image settings) when it has one protocol
     claims: tuple[Claim, ...] = ()
+    #: real assets the project does not ship, as paths under :func:`assets_folder`
+    #: (``::``-options allowed): run when present, left out with a note when not
+    assets: tuple[str, ...] = ()
+
+    def asset_specs(self) -> list[str]:
+        """The model specs of :attr:`assets`: paths (and a ``::texture=`` option's
+        image) under :func:`assets_folder`."""
+        root = assets_folder()
+        specs = []
+        for asset in self.assets:
+            path, *options = asset.split("::")
+            specs.append("::".join([str(root / path)] + [
+                f"texture={root / o[len('texture='):]}" if o.startswith("texture=") else o
+                for o in options]))
+        return specs
+
+    def present_assets(self) -> tuple[list[str], list[str]]:
+        """(the asset model specs whose files exist, the assets missing)."""
+        present, missing = [], []
+        for spec in self.asset_specs():
+            (present if Path(spec.split("::")[0]).is_file() else missing).append(spec)
+        return present, missing
 
     def __post_init__(self) -> None:
         if not self.protocols:
@@ -120,7 +151,8 @@ class Suite:
         only = (shading_label(_protocol(*_protocol_entry(self.protocols[0])).as_dict())
                 if len(self.protocols) == 1 else None)
         object.__setattr__(self, "claims", tuple(replace(
-            c, suite=self.name, models=c.models or self.models,
+            c, suite=self.name,
+            models=c.models or self.models + tuple(self.asset_specs()),
             faces=c.faces or (budgets if not c.ratios else ()),
             ratios=c.ratios or (self.ratios if not (c.faces or budgets) else ()),
             shading=c.shading or only)
@@ -170,6 +202,35 @@ W2003_MODELS = ("torus-puzzle", "bunny")
 W2003_VARIANTS = tuple(("perceptual-mt", {"error": e})
                        for e in ("perceptual", "object", "screen", "screen-silhouette"))
 
+#: The methods built on the suite's own collapse engine.
+ENGINE_METHODS = ("quadric", "memoryless", "canny-texture", "image-driven", "perceptual-mt",
+                  "entropy-twin")
+
+
+def _wild_claims() -> tuple[Claim, ...]:
+    """The wild suite's claims: each engine method reaches its target within 10 % on
+    every model and budget, and loses no part and no material at 10 %; image-driven's
+    image error is at most qslim-texture's on the textured models."""
+    claims = []
+    for method in ENGINE_METHODS:
+        claims += [
+            Claim(f"wild-{method}-target", "real assets (issue: targets reached)",
+                  f"{method} ends within 10 % of its face target on every wild model",
+                  "target_distance", method, below=0.1 + 1e-9),
+            Claim(f"wild-{method}-parts", "real assets (issue: parts kept)",
+                  f"{method} loses no connected component at 10 % of the faces",
+                  "components_lost", method, below=0.5, ratios=(0.10,)),
+            Claim(f"wild-{method}-materials", "real assets (issue: materials kept)",
+                  f"{method} loses no material at 10 % of the faces",
+                  "materials_lost", method, below=0.5, ratios=(0.10,)),
+        ]
+    claims.append(Claim(
+        "wild-image-driven", "Lindstrom & Turk 2000, §5 (on real assets)",
+        "image-driven has an image error no higher than qslim-texture on textured wild "
+        "models", "d_rms", "image-driven", "qslim-texture", below=1.0 + 1e-9))
+    return tuple(claims)
+
+
 SUITES = {
     "ci": Suite(
         "ci", "small enough for CI: bunny and torus at 2% and 1% of their faces, every "
@@ -183,6 +244,16 @@ SUITES = {
                   "than its base method (quadric) alone", "d_rms", "canny-texture",
                   "quadric", below=1.0, models=("torus",)),
         )),
+    "wild": Suite(
+        "wild", "real-asset cases: every available method at 10 % and 3 % on the procedural "
+        "analogues (a UV sphere's poles, a kit of many parts and flat-colour materials "
+        "with non-manifold edges, a vehicle of separate parts) and, where present, the "
+        "real assets of shared/assets/wild (a capsule, a bottle, a glTF truck, a cow)",
+        models=("uv-sphere", "kit", "vehicle"), ratios=(0.10, 0.03),
+        assets=("wild/capsule/capsule.obj", "wild/fuze/fuze.obj",
+                "wild/milk-truck/CesiumMilkTruck.glb",
+                "wild/spot/spot_triangulated.obj::texture=wild/spot/spot_texture.png"),
+        claims=_wild_claims()),
     "lt2000-bunny": Suite(
         "lt2000-bunny", "L&T 2000 §5.1 (Table 1, Figures 5-7): the bunny at Table 1's five "
         "sizes scaled to our bunny, and at 1,332 faces",

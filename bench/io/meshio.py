@@ -42,6 +42,7 @@ from __future__ import annotations
 import hashlib
 import io
 import logging
+import math
 import os
 import re
 import stat
@@ -55,8 +56,8 @@ from bench.io.atomic import write_atomic
 from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
 from bench.mesh import Mesh
 
-__all__ = ["FORMATS", "SCENE_FORMATS", "check_not_inputs", "check_output_path", "glb_bytes",
-           "input_files", "load_mesh", "lod_path", "save_lods", "save_mesh"]
+__all__ = ["FORMATS", "SCENE_FORMATS", "apply_texture", "check_not_inputs", "check_output_path",
+           "glb_bytes", "input_files", "load_mesh", "lod_path", "save_lods", "save_mesh"]
 
 #: Supported file extensions and what they keep.
 FORMATS = {
@@ -74,7 +75,8 @@ SCENE_FORMATS = (".glb", ".gltf")
 logging.getLogger("trimesh").setLevel(logging.ERROR)  # our own warnings say what matters
 
 
-def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
+def load_mesh(path: str | os.PathLike, name: str | None = None, *,
+              texture_file: str | os.PathLike | None = None) -> Mesh:
     """Read a mesh file into a validated :class:`Mesh`.
 
     Parameters
@@ -83,6 +85,9 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         A file with one of the extensions in :data:`FORMATS`.
     name : str, optional
         Label for the mesh; defaults to the file's stem.
+    texture_file : str or PathLike, optional
+        An image to use as the mesh's texture, in place of the file's own (an OBJ
+        with UVs and no ``mtllib`` names none): see :func:`apply_texture`.
 
     Raises
     ------
@@ -112,11 +117,13 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         if scan.get("text") is not None:  # re-encoded as UTF-8, or polygons ear-clipped
             scene = trimesh.load_scene(io.BytesIO(scan["text"].encode("utf-8")),
                                        file_type=scan.get("file_type", "obj"),
-                                       resolver=_TextResolver(str(path)),
+                                       resolver=_TextResolver(str(path),
+                                                              scan.get("texture_aliases")),
                                        process=False, skip_materials=False)
         else:  # the resolver opens regular files only (a named pipe would block)
             scene = trimesh.load_scene(str(path), process=False, skip_materials=False,
-                                       resolver=_TextResolver(str(path)))
+                                       resolver=_TextResolver(str(path),
+                                                              scan.get("texture_aliases")))
         keys = _material_keys(scene, ext, scan)
         several = len(set(keys.values())) > 1 and any(k is not None for k in keys.values())
         # one material: what trimesh.load(force="mesh") returns, as always
@@ -125,7 +132,8 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
         raise InputError(f"{source}: could not read as {ext[1:].upper()} "
                          f"({type(exc).__name__}: {exc})") from None
     if several:
-        return _load_materials(loaded, keys, source, ext, scan, name or path.stem)
+        mesh = _load_materials(loaded, keys, source, ext, scan, name or path.stem)
+        return mesh if texture_file is None else apply_texture(mesh, texture_file)
     if not isinstance(loaded, trimesh.Trimesh) or len(getattr(loaded, "faces", ())) == 0:
         raise InputError(f"{source}: the mesh has no faces (a point cloud or line set "
                          "cannot be simplified); export it with its triangles")
@@ -149,9 +157,67 @@ def load_mesh(path: str | os.PathLike, name: str | None = None) -> Mesh:
     uv, texture, colors, normals = _attributes(loaded, source, ext, scan)
     if uv is not None:
         _check_file_uv(uv, source, path if ext == ".obj" else None)
-    return build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
+    if uv is not None and texture_file is None and ext == ".obj" and not scan.get("mtllib"):
+        _warn_no_material(path)
+    mesh = build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
                       colors=colors, texture=texture, name=name or path.stem,
-                      metadata={"source": source})
+                      metadata={"source": source, **_surface(loaded.visual)})
+    return mesh if texture_file is None else apply_texture(mesh, texture_file)
+
+
+#: Extensions of the image files an OBJ's texture may be (for :func:`_warn_no_material`).
+_IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tga", ".bmp", ".tif", ".tiff", ".webp")
+
+
+def _warn_no_material(path: Path) -> None:
+    """The warning for an OBJ with texture coordinates and no ``mtllib`` line (so no
+    texture), when an image beside it looks like its texture: one with the OBJ's stem,
+    else the folder's only image. Said how to give it (``PATH::texture=IMAGE``)."""
+    images = sorted(p for p in path.parent.iterdir()
+                    if p.suffix.lower() in _IMAGE_EXTENSIONS and p.is_file())
+    same = [p for p in images if p.stem == path.stem]
+    likely = same[0] if same else images[0] if len(images) == 1 else None
+    if likely is None:
+        return
+    warn(f"{path}: has texture coordinates but no material file (no mtllib line), so it "
+         f"loads untextured; {likely.name} beside it looks like its texture: give it as "
+         f"{path}::texture={likely} (bench simplify: --texture {likely})")
+
+
+def apply_texture(mesh: Mesh, texture_file: str | os.PathLike) -> Mesh:
+    """``mesh`` with the image ``texture_file`` as its texture (replacing its own), for
+    a model given as ``PATH::texture=IMAGE`` or with ``bench simplify --texture``; the
+    image's path is kept in ``metadata["texture"]`` (never written over). A relative
+    path is taken from the current folder. InputError for a missing or unreadable
+    image, a mesh without texture coordinates, or one with several materials (each has
+    its own texture)."""
+    texture_file = Path(texture_file)
+    source = mesh.metadata.get("model") or mesh.metadata.get("source") or mesh.name
+    if not texture_file.is_file():
+        beside = Path(source).parent / texture_file
+        hint = (f"; relative paths are from the current folder: did you mean {beside}?"
+                if not texture_file.is_absolute() and beside.is_file() else "")
+        what = "is a directory, not an image" if texture_file.is_dir() else \
+            "is not a regular file (a named pipe or device), not an image" \
+            if texture_file.exists() else "no such texture image"
+        raise InputError(f"{texture_file}: {what} (the texture given for {source}){hint}")
+    if mesh.uv is None:
+        raise InputError(f"{source}: has no texture coordinates, so the texture "
+                         f"{texture_file} cannot be applied to it; give a mesh with UVs")
+    atlas = mesh.metadata.get("atlas")
+    if atlas:
+        raise InputError(f"{source}: has {len(atlas['materials'])} materials, each with its "
+                         f"own texture; a texture ({texture_file}) can be given only for a "
+                         "mesh with one material")
+    from PIL import Image
+
+    try:
+        with Image.open(texture_file) as image:
+            image.load()
+            pixels = _image_array(image)
+    except Exception:  # noqa: BLE001 - PIL raises many kinds; one line for the user
+        raise InputError(f"{texture_file}: texture image {_unreadable(texture_file)}") from None
+    return mesh.replace(texture=pixels, metadata={**mesh.metadata, "texture": str(texture_file)})
 
 
 def save_mesh(mesh: Mesh, path: str | os.PathLike, *, inputs: list | None = None,
@@ -535,6 +601,8 @@ def _load_materials(dumped: list, keys: dict, source: str, ext: str, scan: dict,
                 texture_source = source
             picture = _material_image(material) if texture_source is not None else None
             image = None if picture is None else _image_array(picture)
+            if image is not None and ext == ".obj" and "kd" not in getattr(material, "kwargs", {}):
+                color = (255, 255, 255, 255)  # no Kd: white, not trimesh's 0.4 grey
             if picture is None and texture_source is not None and ext == ".obj":
                 warn(f"{source}: material '{key}': texture image unreadable "
                      f"({_unreadable(Path(texture_source))}); using its colour")
@@ -661,15 +729,18 @@ def _check_file_uv(uv: np.ndarray, source: str, obj: Path | None) -> None:
 
 class _TextResolver:
     """trimesh's file resolver for a mesh file: a material file that is not UTF-8 is
-    handed over re-encoded from Latin-1 (trimesh decodes only UTF-8), and a file that
-    is not a regular file (a named pipe, a device, a directory) is never opened: it is
-    refused as missing (opening a named pipe would block until something writes)."""
+    handed over re-encoded from Latin-1 (trimesh decodes only UTF-8). A texture trimesh
+    asks for by the whole rest of its ``map_Kd`` line, options included, is read from
+    the file name in it (``aliases``, from :func:`_scan_obj`). A file that is not a
+    regular file (a named pipe, a device, a directory) is never opened: it is refused
+    as missing (opening a named pipe would block until something writes)."""
 
-    def __new__(cls, source: str):
+    def __new__(cls, source: str, aliases: dict | None = None):
         from trimesh.resolvers import FilePathResolver
 
         class Resolver(FilePathResolver):
             def get(self, name: str):
+                name = (aliases or {}).get(name, name)
                 for candidate in (name.strip(), name.strip().lstrip("/"),
                                   os.path.split(name)[-1]):
                     try:
@@ -785,7 +856,8 @@ def _export_files(tm, path: Path, **options) -> list[tuple[Path, bytes]]:
 
 def _to_trimesh(mesh: Mesh, material_name: str, material=None):
     """``mesh`` as a trimesh mesh; a textured one gets ``material`` if given (so the
-    levels of a chain can share one), else a new material named ``material_name``."""
+    levels of a chain can share one), else a new material named ``material_name``
+    (:func:`_plain_material`)."""
     import trimesh
     from PIL import Image
 
@@ -796,11 +868,61 @@ def _to_trimesh(mesh: Mesh, material_name: str, material=None):
     if mesh.uv is not None:
         if material is None:
             image = Image.fromarray(mesh.texture) if mesh.texture is not None else None
-            material = trimesh.visual.material.SimpleMaterial(image=image, name=material_name)
+            material = _plain_material(image, material_name, _roughness(mesh.metadata))
         tm.visual = trimesh.visual.TextureVisuals(uv=mesh.uv, material=material)
     elif mesh.colors is not None:
         tm.visual = trimesh.visual.ColorVisuals(tm, vertex_colors=mesh.colors)
     return tm
+
+
+def _surface(visual) -> dict:
+    """``{"material": {"roughness": r}}`` when a loaded file's one material states its
+    roughness, else ``{}`` (:func:`_roughness` then gives 1): glTF's roughness factor;
+    an MTL's ``Pr``, else its specular exponent ``Ns`` mapped as Blender maps it,
+    ``1 - sqrt(Ns / 1000)``. Kept so that a written result has the input's roughness."""
+    material = getattr(visual, "material", None)
+    roughness = getattr(material, "roughnessFactor", None)
+    stated = getattr(material, "kwargs", None) or {}
+    try:
+        if roughness is None and stated.get("pr"):
+            roughness = float(np.ravel(stated["pr"])[0])
+        elif roughness is None and stated.get("ns") is not None:
+            ns = float(np.ravel(stated["ns"])[0])
+            roughness = 1 - math.sqrt(min(max(ns, 0.0), 1000.0) / 1000)
+    except (TypeError, ValueError):
+        roughness = None
+    if roughness is None or not math.isfinite(roughness):
+        return {}
+    return {"material": {"roughness": min(max(float(roughness), 0.0), 1.0)}}
+
+
+def _roughness(metadata: dict) -> float:
+    """The roughness a mesh is written with: its input's (:func:`_surface`), else 1
+    (glTF's default; a fully rough, diffuse surface, as the protocol renders it)."""
+    return float((metadata.get("material") or {}).get("roughness", 1.0))
+
+
+def _plain_material(image, name: str, roughness: float):
+    """The material of a mesh written with one texture (or none): base colour white, so
+    that the texture alone is the colour, as the protocol renders it; not metallic; the
+    given roughness. A glTF gets them as its metallic-roughness factors, an MTL as
+    ``Kd 1 1 1``, ``Ks 0 0 0``, ``Ns`` (Blender's mapping, ``1000 (1 - r)^2``) and the
+    PBR lines ``Pr`` and ``Pm 0``. (trimesh's default is a 0.4 grey, and glTF reads a
+    missing metallic factor as fully metallic: a dull, dark result in PBR viewers.)"""
+    from trimesh.visual.material import PBRMaterial, SimpleMaterial
+
+    class Plain(SimpleMaterial):
+        def to_pbr(self):
+            return PBRMaterial(baseColorTexture=self.image, baseColorFactor=[255] * 4,
+                               metallicFactor=0.0, roughnessFactor=roughness)
+
+        def to_obj(self, name=None):
+            data, name = super().to_obj(name)
+            data[f"{name}.mtl"] += f"\nPr {roughness:.6g}\nPm 0".encode()
+            return data, name
+
+    return Plain(image=image, name=name, diffuse=[255] * 4, ambient=[255] * 4,
+                 specular=[0, 0, 0, 255], glossiness=1000 * (1 - roughness) ** 2)
 
 
 def _obj_material_files(mesh: Mesh, split: list, path: Path) -> list[tuple[Path, bytes]]:
@@ -890,7 +1012,8 @@ def _scene(levels: list, stem: str):
                 textured = part.image is not None
                 materials[key] = trimesh.visual.material.PBRMaterial(
                     name=name, baseColorTexture=Image.fromarray(part.image) if textured else None,
-                    baseColorFactor=[255, 255, 255, 255] if textured else part.material["color"])
+                    baseColorFactor=[255, 255, 255, 255] if textured else part.material["color"],
+                    metallicFactor=0.0, roughnessFactor=_roughness(mesh.metadata))
             kwargs = {}
             if mesh.normals is not None:
                 kwargs["vertex_normals"] = mesh.normals[part.vertices]
@@ -983,7 +1106,9 @@ def _scan_obj(path: Path) -> dict:
                     elif idx > maxima[kind][0]:
                         maxima[kind] = (idx, lineno)
         elif line.startswith(b"mtllib"):
-            mtllibs.extend(line.split()[1:])
+            whole = line[len(b"mtllib"):].strip()  # one name with spaces, or several
+            named = whole and (path.parent / whole.decode(encoding)).is_file()
+            mtllibs.extend([whole] if named else line.split()[1:])
         elif line.startswith(b"usemtl"):
             words = line.split()
             if len(words) > 1:
@@ -1000,7 +1125,7 @@ def _scan_obj(path: Path) -> dict:
                              f"range (the file has {counts[kind]} {_INDEX_UNITS[kind]}); the "
                              "file is corrupt or truncated")
     refs, found, unreadable, textures, files = [], [], [], {}, [(path, "mesh")]
-    mtl_encodings = []
+    mtl_encodings, aliases = [], {}
     for lib in mtllibs:
         mtl = path.parent / lib.decode(encoding)
         if not mtl.is_file():
@@ -1017,10 +1142,16 @@ def _scan_obj(path: Path) -> dict:
                 current = parts[1]
             elif (key.startswith("map_") or key in ("bump", "disp", "decal", "norm")) \
                     and len(parts) > 1:
-                files.append((mtl.parent / parts[-1], "texture"))
+                tex = _map_file(line)
+                if not tex:
+                    continue
+                files.append((mtl.parent / tex, "texture"))
                 if key not in ("map_kd", "map_ka"):
                     continue
-                tex = parts[-1]
+                if key == "map_kd":  # trimesh's name for it: the rest of the line
+                    said = line.strip()[len("map_kd"):].strip()
+                    if said != tex:
+                        aliases[said] = tex
                 where = mtl.parent / tex
                 problem = None if where.is_file() else \
                     "is a directory" if where.is_dir() else _not_regular(where)
@@ -1041,7 +1172,33 @@ def _scan_obj(path: Path) -> dict:
             "first_short": first_short, "texture_refs": refs, "texture_files": found,
             "texture_unreadable": unreadable, "usemtl": list(usemtl),
             "material_textures": textures, "files": files, "encoding": encoding,
-            "text": text}
+            "text": text, "texture_aliases": aliases, "mtllib": bool(mtllibs)}
+
+
+#: Options of an MTL texture statement (``map_Kd -s 1 1 1 -clamp on file.png``) and how
+#: many values each takes; ``-o``, ``-s`` and ``-t`` take one to three numbers.
+_MAP_OPTIONS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1,
+                "-imfchan": 1, "-mm": 2, "-texres": 1, "-type": 1, "-o": 3, "-s": 3, "-t": 3}
+
+
+def _map_file(line: str) -> str:
+    """The file name of an MTL texture statement: what follows the keyword and its
+    options, to the end of the line, inner spaces included (``map_Kd -s 2 2 fuze uv.jpg``
+    -> ``fuze uv.jpg``); empty when there is none."""
+    words = list(re.finditer(r"\S+", line))[1:]  # after the keyword
+    i = 0
+    while i < len(words) and words[i].group().lower() in _MAP_OPTIONS:
+        option, i = words[i].group().lower(), i + 1
+        for n in range(_MAP_OPTIONS[option]):
+            if i >= len(words):
+                break
+            if option in ("-o", "-s", "-t") and n > 0:  # the optional 2nd and 3rd value
+                try:
+                    float(words[i].group())
+                except ValueError:
+                    break
+            i += 1
+    return line[words[i].start():].strip() if i < len(words) else ""
 
 
 def _ear_clip(text: str, big: list) -> tuple[str | None, int]:

@@ -29,7 +29,11 @@ __all__ = [
     "TORUS_13810",
     "TORUS_PUZZLE",
     "TWO_MATERIALS",
+    "KIT",
+    "UV_SPHERE",
+    "VEHICLE",
     "ModelSpec",
+    "parse_model_spec",
     "pymeshlab_sample",
     "resolve_model",
 ]
@@ -169,6 +173,28 @@ TORUS_13810 = ModelSpec(
     _predecimated(TORUS, 13810), derived_faces=13810)
 
 
+def _wild(make: str) -> Callable[[], Mesh]:
+    def load() -> Mesh:
+        from bench.models import wild
+
+        return getattr(wild, make)()
+    return load
+
+
+UV_SPHERE = ModelSpec(
+    "uv-sphere", "a UV sphere of 200 segments and 60 rings: each pole one position with "
+    "200 render vertices, a wrap-around seam (the wild suite)",
+    "procedural (bench.models.wild)", _wild("make_uv_sphere"))
+KIT = ModelSpec(
+    "kit", "a kit of 17 small props in six flat-colour materials: boxes, barrels, bolts, a "
+    "box standing on another unwelded, sign plates on non-manifold edges (the wild suite)",
+    "procedural (bench.models.wild, seed 43)", _wild("make_kit"))
+VEHICLE = ModelSpec(
+    "vehicle", "a vehicle-like assembly: a textured body and cabin, four separate wheels, "
+    "hubcaps and axles in three materials (the wild suite)",
+    "procedural (bench.models.wild)", _wild("make_vehicle"))
+
+
 def _looks_like_path(word: str) -> bool:
     return os.sep in word or "/" in word or Path(word).suffix != "" or Path(word).exists()
 
@@ -180,15 +206,50 @@ def _load_registered(name: str) -> Mesh:
     return registry("model").load(name).load()
 
 
+#: What a model spec's options are written like (README, "Models").
+SPEC_SYNTAX = "MODEL::texture=IMAGE"
+
+
+def parse_model_spec(word: str) -> tuple[str, dict]:
+    """``"spot.obj::texture=spot.png"`` -> ``("spot.obj", {"texture": "spot.png"})``: a
+    model (a name or a file) and its options, each ``::key=value`` after it. The one
+    option is ``texture``, an image to use as the model's texture. InputError, in one
+    line, for a malformed spec or an unknown option."""
+    base, *items = word.split("::")
+    options = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key, value = key.strip(), value.strip()
+        if not base.strip() or not sep or not key or not value:
+            raise InputError(f"model {word!r}: options are written {SPEC_SYNTAX}, e.g. "
+                             "spot.obj::texture=spot_texture.png")
+        if key != "texture":
+            raise InputError(f"model {word!r}: unknown option '{key}'; the one option is "
+                             f"texture ({SPEC_SYNTAX})")
+        if key in options:
+            raise InputError(f"model {word!r}: {key} given twice")
+        options[key] = value
+    return base, options
+
+
 def resolve_model(word: str) -> Mesh:
     """A registered model's mesh, or the mesh in the file ``word``.
 
     Registered names win over files of the same name in the working directory only
-    when the word has no extension or path separator.
+    when the word has no extension or path separator. Options follow the model as
+    ``::key=value`` (:func:`parse_model_spec`): ``spot.obj::texture=spot.png`` gives
+    ``spot.obj`` the texture ``spot.png``.
     """
-    from bench.io.meshio import load_mesh
+    from bench.io.meshio import apply_texture, load_mesh
     from bench.registry import registry
 
+    if "::" in word:
+        base, options = parse_model_spec(word)
+        if base in registry("model"):
+            return apply_texture(_load_registered(base), options["texture"])
+        if _looks_like_path(base):
+            return load_mesh(base, texture_file=options["texture"])
+        word = base  # an unknown name: said below
     models = registry("model")
     if word in models:
         return _load_registered(word)

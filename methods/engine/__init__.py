@@ -61,8 +61,21 @@ Topology rules (each rejection is counted and reported):
   tetrahedron at 4 faces);
 - *fold-over*: no surviving face may rotate its normal by more than
   ``max_normal_rotation`` degrees (default 90°, i.e. flip) or lose its area;
-- non-manifold edges (more than two faces) are never collapsed;
-- with ``boundary_lock`` no boundary vertex moves or disappears.
+- non-manifold edges (more than two faces) are never collapsed; the collapses around
+  them go ahead under the rules above (the non-manifold edge survives as it is, as in
+  MeshLab's quadric decimation), so a mesh with a few such edges still reaches its
+  target;
+- with ``boundary_lock`` no boundary vertex moves or disappears;
+- *capacity*: a collapse that would not fit one of the engine's fixed workspaces (a
+  UV sphere's pole) is refused and tried again once its neighbourhood shrank
+  (:mod:`methods.engine.capacity`);
+- *last faces of a part*: with ``keep_parts`` (the default) no collapse removes the
+  last faces of a connected component or of a material (:mod:`methods.engine.parts`).
+
+The optimal placement is guarded: the quadric's minimiser must lie within the bounding
+box of the edge's one-ring enlarged by a quarter of the edge's length, else the best of
+the endpoints and the midpoint is taken (a long edge on a multi-part asset otherwise
+threw a vertex far outside its part).
 
 Wedges (render vertices) are carried along: the two faces removed by a collapse pair
 each wedge of the removed vertex with the wedge of the kept vertex on the same side of

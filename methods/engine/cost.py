@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from methods.engine.canny import _walk
+from methods.engine.capacity import over_capacity
 from methods.engine.lindstrom_turk import lt_cost, lt_placement
 from methods.engine.policy import (
     BOUNDARY_RULE,
@@ -28,7 +29,13 @@ from methods.engine.policy import (
     VERTEX_ORDINARY,
     VERTEX_SEAM,
 )
-from methods.engine.quadrics import _add_reduced, _group_quadric, _optimal_point, quadric_error
+from methods.engine.quadrics import (
+    _add_reduced,
+    _group_quadric,
+    _optimal_point,
+    best_of_ends,
+    quadric_error,
+)
 from methods.engine.state import QUADRIC_SIZE
 from methods.engine.topology import _edge_faces, _faces_area, _gather_profile
 from methods.engine.wedges import (
@@ -52,7 +59,8 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
     ``mesh``, ``rules``, ``terms``, ``scratch`` and ``images`` are the structures of
     :mod:`methods.engine.state`. Returns (cost, keep): keep is the vertex that survives
     (the other is removed), and the new position is written to ``scratch.p``. cost is
-    +inf when the seam or boundary rule forbids the collapse.
+    +inf when the seam or boundary rule forbids the collapse, or when it does not fit
+    the engine's workspaces (:mod:`methods.engine.capacity`).
 
     The steps: the summed quadric (:func:`_edge_quadric`), the vertex the rules force
     to stay (:func:`_forced_end`), the Lindstrom–Turk profile when a term or the
@@ -60,6 +68,9 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
     it (:func:`_place_and_cost`).
     """
     P, out_p = mesh.P, scratch.p
+    if over_capacity(a, b, mesh, rules, scratch):  # the capacity rule (capacity.py)
+        out_p[:] = P[b]
+        return np.inf, b
     _edge_quadric(a, b, mesh, scratch)
     forced = _forced_end(a, b, mesh, rules, scratch)
     if forced == -2:  # forbidden
@@ -166,15 +177,53 @@ def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
         if ok:
             out_p[:] = q
         else:  # degenerate profile: the quadric's choice (Lindstrom & Turk fall back too)
-            _optimal_point(qsum, P[a], P[b], out_p)
+            _guarded_optimal_point(a, b, l2, mesh, qsum, out_p)
     else:  # optimal, or a profile too large for the workspace (n_tris == -1)
-        _optimal_point(qsum, P[a], P[b], out_p)
+        _guarded_optimal_point(a, b, l2, mesh, qsum, out_p)
     cost = _cost_at(out_p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
                     n_bnd, link, n_link, l2) + canny
     if rendered:
         cost += _view_cost(a if keep == b else b, keep, out_p, mesh, rules, terms, scratch,
                            images, np.inf)
     return cost, keep
+
+
+#: How far beyond the bounding box of an edge's one-ring the quadric's minimiser may lie,
+#: as a fraction of the edge's length (the placement guard, :func:`_guarded_optimal_point`).
+RING_BOX_MARGIN = 0.25
+
+
+@njit(cache=True)
+def _guarded_optimal_point(a, b, l2, mesh, qsum, out_p):
+    """The quadric's minimiser for edge (a, b) (:func:`_optimal_point`), unless it lies
+    outside the bounding box of the vertices of the faces around a and b enlarged by
+    :data:`RING_BOX_MARGIN` times the edge's length: then the best of the endpoints and
+    the midpoint, as for an ill-conditioned quadric.
+
+    The minimiser's own guard (within one edge length of the midpoint) is no bound on a
+    long edge: on a multi-part asset, a 1.7-unit edge along the bottom rim of a truck's
+    body had its minimiser 1.6 units below the body, under the wheels (a spike). A
+    minimiser on a smooth surface lies within a small fraction of the edge's length of
+    its one-ring."""
+    P = mesh.P
+    _optimal_point(qsum, P[a], P[b], out_p)
+    margin = RING_BOX_MARGIN * np.sqrt(l2)
+    lo0 = lo1 = lo2 = np.inf
+    hi0 = hi1 = hi2 = -np.inf
+    for side in range(2):
+        c = mesh.vhead[a if side == 0 else b]
+        while c != -1:
+            f = c // 3
+            if mesh.falive[f]:
+                for j in range(3):
+                    x = mesh.F[f, j]
+                    lo0, hi0 = min(lo0, P[x, 0]), max(hi0, P[x, 0])
+                    lo1, hi1 = min(lo1, P[x, 1]), max(hi1, P[x, 1])
+                    lo2, hi2 = min(lo2, P[x, 2]), max(hi2, P[x, 2])
+            c = mesh.cnext[c]
+    if not (lo0 - margin <= out_p[0] <= hi0 + margin and lo1 - margin <= out_p[1] <= hi1 + margin
+            and lo2 - margin <= out_p[2] <= hi2 + margin):
+        best_of_ends(qsum, P[a], P[b], out_p)
 
 
 @njit(cache=True, inline="always")

@@ -24,7 +24,15 @@ from numba.typed import Dict
 from methods.engine.borrow import borrowed
 from methods.engine.collapse import _collapse
 from methods.engine.cost import _evaluate
-from methods.engine.policy import _N_REJECTIONS, REJECT_SEAM_RULE, VALID
+from methods.engine.capacity import over_capacity
+from methods.engine.parts import empties_a_part, faces_removed
+from methods.engine.policy import (
+    _N_REJECTIONS,
+    REJECT_CAPACITY,
+    REJECT_LAST_OF_PART,
+    REJECT_SEAM_RULE,
+    VALID,
+)
 from methods.engine.state import (
     BLOCKED_INITIAL,
     EVALUATIONS,
@@ -132,12 +140,18 @@ def _pop_current(heap, mesh, rules, terms, scratch, images, queue):
 @njit(cache=True)
 def _check_candidate(u, v, fresh, mesh, rules, scratch):
     """VALID, or the rejection code of the first rule that collapsing u into v at
-    ``scratch.p`` breaks (an infinite cost is the seam rule's verdict)."""
+    ``scratch.p`` breaks (an infinite cost is the capacity rule's verdict or the seam
+    rule's)."""
     if fresh == np.inf:
+        if over_capacity(u, v, mesh, rules, scratch):
+            return REJECT_CAPACITY
         return REJECT_SEAM_RULE
-    return _check(u, v, scratch.p, mesh.P, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
+    code = _check(u, v, scratch.p, mesh.P, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
                   mesh.vboundary, scratch.mark, scratch.tick, scratch.nbr_u, scratch.nbr_v,
                   scratch.efaces, rules.cos_limit, rules.boundary_lock)
+    if code == VALID and rules.keep_parts and empties_a_part(u, v, mesh, scratch):
+        return REJECT_LAST_OF_PART
+    return code
 
 
 @njit(cache=True)
@@ -229,6 +243,7 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
     efaces = scratch.efaces
     for i in range(min(removed, 2)):
         log.faces[n, i] = efaces[i]
+    faces_removed(mesh, efaces, min(removed, efaces.shape[0]))
     if rules.weights.image != 0.0 or rules.weights.entropy != 0.0:
         img, tiles, iws = images.img, images.tiles, images.iws
         # the faces that held u: with v in place, the only ones whose geometry changes

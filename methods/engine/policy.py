@@ -41,7 +41,12 @@ CANNY_UNITS = ("area", "base-cost")
 #   - duplicate face: a face of u, renamed to v, would coincide with a face of v;
 #   - fold-over: a moved face turns its normal by more than ``max_normal_rotation`` or
 #     loses its area;
-#   - seam rule (and boundary rule): the vertex-kind tables below (an infinite cost).
+#   - seam rule (and boundary rule): the vertex-kind tables below (an infinite cost);
+#   - capacity: the collapse would not fit one of the engine's fixed workspaces (a fan
+#     of a hundred faces at a UV sphere's pole; methods.engine.capacity), also an
+#     infinite cost;
+#   - last faces of a part: with ``keep_parts``, the collapse would remove the last
+#     faces of a connected component or of a material (methods.engine.parts).
 # Each code is 1 + its name's index in REJECTIONS, the order of the ``rejects`` counts.
 VALID = 0
 REJECT_LINK_CONDITION = 1
@@ -51,10 +56,13 @@ REJECT_FOLD_OVER = 4
 REJECT_NON_MANIFOLD = 5
 REJECT_BOUNDARY_LOCK = 6
 REJECT_SEAM_RULE = 7
+REJECT_CAPACITY = 8
+REJECT_LAST_OF_PART = 9
 
 #: Rejection counters by name, in the order of the kernel's ``rejects`` array.
 REJECTIONS = ("link condition", "boundary pinch", "duplicate face", "fold-over",
-              "non-manifold edge", "boundary lock", "seam rule")
+              "non-manifold edge", "boundary lock", "seam rule", "capacity",
+              "last faces of a part")
 
 
 STOP_REASONS = {0: "reached the target", 1: "no valid collapse remains"}
@@ -143,6 +151,10 @@ class Policy:
         triangles (before the collapse) gives the new position; see ``_uv_correction``.
     boundary_rule : bool
         A boundary vertex is never merged into an interior one (see ``_evaluate``).
+    keep_parts : bool
+        Never remove the last faces of a connected component (welded) or of a
+        material (:func:`bench.io.atlas.face_materials`): a collapse that would is
+        rejected under the rule "last faces of a part" (:mod:`methods.engine.parts`).
     """
 
     placement: str = "optimal"
@@ -158,6 +170,7 @@ class Policy:
     texture_weight: float = 0.0
     uv_correction: bool = False
     boundary_rule: bool = False
+    keep_parts: bool = True
 
     def __post_init__(self):
         if self.placement not in PLACEMENTS:

@@ -120,6 +120,13 @@ def _optimal_point(q, pa, pb, out):
         e0, e1, e2 = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
         if d0 * d0 + d1 * d1 + d2 * d2 <= e0 * e0 + e1 * e1 + e2 * e2:
             return quadric_error(q, out)
+    return best_of_ends(q, pa, pb, out)
+
+
+@njit(cache=True)
+def best_of_ends(q, pa, pb, out):
+    """The best of the endpoints and the midpoint under quadric ``q``, into ``out``;
+    returns its error (the fallback of :func:`_optimal_point`)."""
     best = quadric_error(q, pa)
     out[:] = pa
     e = quadric_error(q, pb)

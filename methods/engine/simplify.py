@@ -8,10 +8,11 @@ from collections import namedtuple
 
 import numpy as np
 
-from bench.io.atlas import wedge_tiles
+from bench.io.atlas import face_materials, wedge_tiles
 from bench.mesh import Mesh
 from methods.engine.initial import edge_areas, first_costs
 from methods.engine.loop import _run
+from methods.engine.parts import face_groups
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
 from methods.engine.quadrics import _boundary_corners, initial_quadrics, wedge_quadrics
 from methods.engine.scale import scaled, workable_exponent
@@ -174,8 +175,14 @@ def _prepare(mesh: Mesh, policy: Policy, image) -> _Prepared:
     valive = np.zeros(nv, bool)
     valive[np.unique(F)] = True
     uv = mesh.uv.copy() if mesh.uv is not None else np.zeros((1, 2))
-    arrays = MeshArrays(P, None, F, FW, falive, vhead, cnext, valive, vboundary,
-                        wedge_vertex, uv, np.zeros(nv, bool), None)
+    materials = face_materials(mesh)
+    if materials is not None and fperm is not None:
+        materials = materials[fperm]
+    group, group_live = face_groups(F, nv, materials)
+    arrays = MeshArrays(P=P, Q=None, F=F, FW=FW, falive=falive, vhead=vhead, cnext=cnext,
+                        valive=valive, vboundary=vboundary, wedge_vertex=wedge_vertex,
+                        uv=uv, moved=np.zeros(nv, bool), WQ=None, group=group,
+                        group_live=group_live)
     return _Prepared(P0, P, lo, scale, arrays, boundary_corners, vperm, fperm,
                      np.zeros(N_KINDS, np.int64))
 
@@ -222,13 +229,17 @@ def _rules(mesh: Mesh, policy: Policy, image, prep: _Prepared, target_faces, ver
                       float(0.0 if image is None else getattr(image, "entropy_weight", 0.0)))
     nv = len(prep.P)
     limit = max(1, nv) if max_collapses is None else max(0, int(max_collapses))
-    return Rules(PLACEMENTS[policy.placement], weights,
-                 math.cos(math.radians(policy.max_normal_rotation)),
-                 bool(policy.boundary_lock),
-                 bool(policy.seam_rule and mesh.n_vertices != mesh.welded.n_vertices),
-                 bool(policy.boundary_rule), bool(verify), bool(has_uv),
-                 bool(policy.r5_uv and has_uv and policy.placement == "memoryless"),
-                 bool(policy.uv_correction and has_uv), int(target_faces), limit)
+    return Rules(placement=PLACEMENTS[policy.placement], weights=weights,
+                 cos_limit=math.cos(math.radians(policy.max_normal_rotation)),
+                 boundary_lock=bool(policy.boundary_lock),
+                 seam_rule=bool(policy.seam_rule
+                                and mesh.n_vertices != mesh.welded.n_vertices),
+                 boundary_rule=bool(policy.boundary_rule), verify=bool(verify),
+                 has_uv=bool(has_uv),
+                 use_r5=bool(policy.r5_uv and has_uv and policy.placement == "memoryless"),
+                 uv_fix=bool(policy.uv_correction and has_uv),
+                 keep_parts=bool(policy.keep_parts), target=int(target_faces),
+                 max_collapses=limit)
 
 
 def _terms(policy: Policy, prep: _Prepared, borders, rules: Rules) -> Terms:

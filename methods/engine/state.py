@@ -66,16 +66,20 @@ Weights = namedtuple("Weights", "quadric memoryless canny image entropy")
 #: 10), faces ``F`` (m, 3) and their wedges ``FW`` (m, 3), ``falive`` (m,), corner
 #: lists ``vhead`` (nv,) / ``cnext`` (3m,), ``valive`` (nv,), ``vboundary`` (nv,),
 #: ``wedge_vertex`` (n_wedges,), ``uv`` (n_wedges, 2), ``moved`` (nv,) bool (a vertex
-#: whose position changed), ``WQ`` (n_wedges, 31) wedge quadrics or (1, 31).
+#: whose position changed), ``WQ`` (n_wedges, 31) wedge quadrics or (1, 31), ``group``
+#: (m,) each face's part (methods.engine.parts) and ``group_live`` (g,) the live faces
+#: of each part.
 MeshArrays = namedtuple("MeshArrays", "P Q F FW falive vhead cnext valive vboundary "
-                                      "wedge_vertex uv moved WQ")
+                                      "wedge_vertex uv moved WQ group group_live")
 
 #: The policy as codes: ``placement`` (a value of PLACEMENTS), ``weights``
 #: (:data:`Weights`), ``cos_limit`` (fold-over), and booleans ``boundary_lock``,
 #: ``seam_rule``, ``boundary_rule``, ``verify``, ``has_uv``, ``use_r5`` (R^5 UVs),
-#: ``uv_fix`` (González 2008's UV correction), ``target`` faces, ``max_collapses``.
+#: ``uv_fix`` (González 2008's UV correction), ``keep_parts`` (methods.engine.parts),
+#: ``target`` faces, ``max_collapses``.
 Rules = namedtuple("Rules", "placement weights cos_limit boundary_lock seam_rule "
-                            "boundary_rule verify has_uv use_r5 uv_fix target max_collapses")
+                            "boundary_rule verify has_uv use_r5 uv_fix keep_parts target "
+                            "max_collapses")
 
 #: Read-only inputs of the cost terms: Canny ``borders`` (h, w) bool,
 #: ``canny_per_area`` (the Canny penalty per unit of an edge's face area, before the

@@ -184,7 +184,12 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
         for i in prange(nv):
             if not valive[i]:
                 continue
-            buf = np.empty(NORMAL_FACES_CAP, np.int64)
+            n_faces = 0  # a fan wider than the capacity gets a buffer of its own
+            c = vhead[i]
+            while c != -1:
+                n_faces += 1
+                c = cnext[c]
+            buf = np.empty(max(NORMAL_FACES_CAP, n_faces), np.int64)
             vertex_normal(i, -1, -1, P[i], P, F, vhead, cnext, falive, buf, vn[i])
             for h in range(n_views):
                 _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], shading, L[h, i], 0)
