@@ -9,7 +9,9 @@ under the same entry-point groups a third-party package would use::
 Entries are loaded lazily (importing a method must not import every backend). A
 plug-in object may declare ``requires = {"import_name": "pip requirement"}``; when one
 is missing the entry stays listed, marked unavailable, with the pip command that fixes
-it. Two distributions registering one name is an error naming both.
+it; a plug-in whose backend is not a Python package may define a callable
+``unavailable_reason()`` returning why it cannot run and the fix (None when it can).
+Two distributions registering one name is an error naming both.
 
 For trying a plug-in without packaging it, ``BENCH_PLUGINS`` adds entries from the
 environment (worker processes inherit it)::
@@ -90,6 +92,11 @@ class Entry:
                    if importlib.util.find_spec(mod) is None]
         if missing:
             self._problem = "missing backend; install with: pip install " + " ".join(missing)
+            return
+        # a backend outside Python (a program, an npm package) says itself what is missing
+        check = getattr(self._object, "unavailable_reason", None)
+        if callable(check):
+            self._problem = check()
 
     @property
     def available(self) -> bool:

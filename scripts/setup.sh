@@ -7,8 +7,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # Headless OpenGL through EGL on Mesa's llvmpipe (no GPU, no display needed), plus venv,
-# plus the C++ compiler pip needs to build meshoptimizer from its sdist (no wheel here).
-PKGS="libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgbm1 python3-venv g++"
+# plus Node.js and npm, which run meshoptimizer and gltfpack (the meshopt* and gltfpack rows).
+PKGS="libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgbm1 python3-venv nodejs npm"
 missing=$(dpkg-query -W -f='${db:Status-Abbrev} ${Package}\n' $PKGS 2>/dev/null | awk '$1!="ii"{print $2}'; \
           for p in $PKGS; do dpkg-query -W "$p" >/dev/null 2>&1 || echo "$p"; done)
 if [ -n "$(echo $missing)" ]; then
@@ -23,6 +23,10 @@ PYTHON=${PYTHON:-$(command -v python3.11 || command -v python3)}
 # Exact versions (constraints.txt, from pip freeze): the same numbers from the same
 # command on any day; regenerate it with the baselines when upgrading on purpose.
 .venv/bin/python -m pip install -q -c constraints.txt -e '.[test,dask]'
+# meshoptimizer and gltfpack 1.3.0 from the npm registry, exactly as the lockfile pins them
+# (integrity hashes checked); without them those rows are listed as unavailable.
+npm ci --prefix methods/meshopt_node --no-audit --no-fund --loglevel=error \
+    || echo "setup: npm ci failed; the meshopt* and gltfpack rows stay unavailable" >&2
 # Compile the numba kernels once (cached on disk), so no run or test pays for it.
 .venv/bin/bench warmup
 

@@ -11,7 +11,7 @@ import pytest
 
 from bench.cli import main
 from bench.harness.check import FAILING_MARKS, baseline_problem, compare, make_baseline
-from bench.harness.claims import STATS_PREFIX, Claim, evaluate_claim
+from bench.harness.claims import STATS_PREFIX, TARGET_DISTANCE, Claim, evaluate_claim
 from bench.harness.results import write_record
 from bench.harness.suites import SUITES, Suite
 from conftest import made_up_record
@@ -126,7 +126,7 @@ def test_every_claim_of_the_suites_names_variants_and_metrics_that_exist():
                                   if p else m) for m, p in (suite.variants or ())}
         for c in suite.claims:
             assert (c.metric in directions or c.metric == "seam_cracks"
-                    or c.metric.startswith(STATS_PREFIX)), c.name
+                    or c.metric == TARGET_DISTANCE or c.metric.startswith(STATS_PREFIX)), c.name
             if suite.variants is not None:
                 assert canonical_label(c.method) in labels, c.name
                 assert c.against is None or canonical_label(c.against) in labels, c.name

@@ -28,9 +28,10 @@ from bench.method import run_method, target_tolerance
 from bench.models import resolve_model
 from bench.registry import registry
 from conftest import blob
+from methods.meshopt import node_problem
 from metrics.protocol import Protocol, evaluate
 
-meshopt = pytest.importorskip("meshoptimizer")
+pytestmark = pytest.mark.skipif(node_problem() is not None, reason=str(node_problem()))
 
 
 def method(name: str):

@@ -73,7 +73,8 @@ def test_record_strings_are_escaped(tmp_path):
     assert "<b>" not in page
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in page  # shown, as text
     # the record with the script as its status is left out, and says so
-    assert "&#x27;status&#x27; must be one of ok, failed, skipped" in page
+    assert ("&#x27;status&#x27; must be one of &#x27;ok&#x27;, &#x27;ok, off target&#x27;, "
+            "&#x27;failed&#x27;, &#x27;skipped&#x27;") in page
     assert len(_warnings(proc)) == 1, proc.stderr
 
 

@@ -116,8 +116,9 @@ def test_results_csv_and_report(run):
     root, _ = run
     table = pd.read_csv(root / "out" / "results.csv")
     # the built-in columns, then the registered metrics they do not show, by name
-    assert list(table.columns) == CSV_COLUMNS + ["non_manifold_edges", "render_vertices",
-                                                 "welded_vertices"]
+    assert list(table.columns) == CSV_COLUMNS + [
+        "components_lost", "components_lost_area", "materials_lost", "non_manifold_edges",
+        "render_vertices", "welded_vertices"]
     assert len(table) == 8
     assert sorted(table.status.unique()) == ["failed", "ok"]
     html = (root / "out" / "index.html").read_text()

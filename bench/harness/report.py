@@ -447,8 +447,8 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out, images:
             continue
         job = r["job"]
         shading = shading_label(job["protocol"])
-        evaluated = f", evaluated {_esc(shading)}" if several else ""
-        parts.append(f"<h3>{_esc(job['label'])} at {job['target_faces']} faces{evaluated}: "
+        under = f", evaluated {_esc(shading)}" if several else ""
+        parts.append(f"<h3>{_esc(job['label'])} at {job['target_faces']} faces{under}: "
                      f"d_RMS {_fixed(r['metrics'].get('d_rms'))}</h3><div class='sheet'>"
                      f"{''.join(_sheet_figures(r, images[id(r)]))}</div>")
         for name in r.get("artifacts") or []:  # images the method asked to show

@@ -84,9 +84,13 @@ def result_status(faces: int, target: int) -> str:
 #: empty for models that do not classify their faces (:mod:`metrics.interior`). Every
 #: other registered metric that some record has follows ``status``, by name
 #: (:func:`metric_columns`); a cell is empty where a record lacks the metric.
+#: ``library_error`` is the error the method's library reports for its result (the
+#: meshopt rows: meshoptimizer's result_error, relative to the mesh's extent), empty for
+#: methods that report none.
 CSV_COLUMNS = ["model", "method", "shading", "target_faces", "faces", "d_rms", "ssim", "flip",
                "hausdorff_mean", "hausdorff_max", "silhouette_mean", "boundary_edges",
-               "seam_cracks", "exterior_share", "seconds", "tri_per_s", "peak_mb", "status"]
+               "seam_cracks", "exterior_share", "library_error", "seconds", "tri_per_s",
+               "peak_mb", "status"]
 
 
 def shading_label(protocol: dict) -> str:
@@ -208,7 +212,7 @@ def record_problem(record) -> str | None:
     if not _is_int(schema) or schema < 1:
         return f"'schema' must be a positive integer, got {_show(schema)}"
     if record.get("status") not in STATUSES:
-        return (f"'status' must be one of {', '.join(STATUSES)}, "
+        return (f"'status' must be one of {', '.join(map(repr, STATUSES))}, "
                 f"got {_show(record.get('status'))}")
     job = record.get("job")
     if not isinstance(job, dict):
@@ -384,7 +388,8 @@ def records_table(records: list[dict]):
             "flip": m.get("flip"), "hausdorff_mean": m.get("hausdorff_mean"),
             "hausdorff_max": m.get("hausdorff_max"), "silhouette_mean": m.get("silhouette_mean"),
             "boundary_edges": m.get("boundary_edges"), "seam_cracks": m.get("seam_cracks"),
-            "exterior_share": m.get("exterior_share"), "seconds": stats.get("wall_seconds"),
+            "exterior_share": m.get("exterior_share"),
+            "library_error": stats.get("library_error"), "seconds": stats.get("wall_seconds"),
             "tri_per_s": stats.get("tri_per_s"), "peak_mb": stats.get("peak_mb"), "status": r["status"],
             **{name: m.get(name) for name in extra},
         })
