@@ -174,9 +174,10 @@ def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
     elif placement == PLACE_MEMORYLESS and n_tris > 0:
         q, ok = lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
                              l2, LT_ALPHA_DEG, LT_VOLUME_WEIGHT, LT_BOUNDARY_WEIGHT)
-        if ok:
+        if ok and _near_ring(a, b, l2, mesh, q):
             out_p[:] = q
-        else:  # degenerate profile: the quadric's choice (Lindstrom & Turk fall back too)
+        else:  # degenerate profile, or a point far off (the placement guard): the
+            # quadric's choice (Lindstrom & Turk fall back to it too)
             _guarded_optimal_point(a, b, l2, mesh, qsum, out_p)
     else:  # optimal, or a profile too large for the workspace (n_tris == -1)
         _guarded_optimal_point(a, b, l2, mesh, qsum, out_p)
@@ -194,19 +195,18 @@ RING_BOX_MARGIN = 0.25
 
 
 @njit(cache=True)
-def _guarded_optimal_point(a, b, l2, mesh, qsum, out_p):
-    """The quadric's minimiser for edge (a, b) (:func:`_optimal_point`), unless it lies
-    outside the bounding box of the vertices of the faces around a and b enlarged by
-    :data:`RING_BOX_MARGIN` times the edge's length: then the best of the endpoints and
-    the midpoint, as for an ill-conditioned quadric.
+def _near_ring(a, b, l2, mesh, p):
+    """True when ``p`` lies within the bounding box of the vertices of the faces around
+    a and b enlarged by :data:`RING_BOX_MARGIN` times the edge's length (the placement
+    guard).
 
-    The minimiser's own guard (within one edge length of the midpoint) is no bound on a
-    long edge: on a multi-part asset, a 1.7-unit edge along the bottom rim of a truck's
-    body had its minimiser 1.6 units below the body, under the wheels (a spike). A
-    minimiser on a smooth surface lies within a small fraction of the edge's length of
-    its one-ring."""
+    A placement on a smooth surface lies within a small fraction of the edge's length of
+    its one-ring. On a multi-part asset neither the quadric's minimiser (its own guard,
+    within one edge length of the midpoint, is no bound on a long edge: on the glTF milk
+    truck a 1.7-unit edge along the body's bottom rim had it 1.6 units below the body)
+    nor Lindstrom & Turk's constrained point (3 units off a 0.7-unit edge of a small
+    part, on the same truck) always does."""
     P = mesh.P
-    _optimal_point(qsum, P[a], P[b], out_p)
     margin = RING_BOX_MARGIN * np.sqrt(l2)
     lo0 = lo1 = lo2 = np.inf
     hi0 = hi1 = hi2 = -np.inf
@@ -221,8 +221,18 @@ def _guarded_optimal_point(a, b, l2, mesh, qsum, out_p):
                     lo1, hi1 = min(lo1, P[x, 1]), max(hi1, P[x, 1])
                     lo2, hi2 = min(lo2, P[x, 2]), max(hi2, P[x, 2])
             c = mesh.cnext[c]
-    if not (lo0 - margin <= out_p[0] <= hi0 + margin and lo1 - margin <= out_p[1] <= hi1 + margin
-            and lo2 - margin <= out_p[2] <= hi2 + margin):
+    return (lo0 - margin <= p[0] <= hi0 + margin and lo1 - margin <= p[1] <= hi1 + margin
+            and lo2 - margin <= p[2] <= hi2 + margin)
+
+
+@njit(cache=True)
+def _guarded_optimal_point(a, b, l2, mesh, qsum, out_p):
+    """The quadric's minimiser for edge (a, b) (:func:`_optimal_point`), unless it fails
+    the placement guard (:func:`_near_ring`): then the best of the endpoints and the
+    midpoint, as for an ill-conditioned quadric."""
+    P = mesh.P
+    _optimal_point(qsum, P[a], P[b], out_p)
+    if not _near_ring(a, b, l2, mesh, out_p):
         best_of_ends(qsum, P[a], P[b], out_p)
 
 
