@@ -346,3 +346,31 @@ def test_bench_compare_refuses_bad_methods_in_one_line(tmp_path, capsys, methods
     assert main(["compare", str(_run(tmp_path)), "--methods", methods]) == 2
     err = capsys.readouterr().err
     assert err.startswith("bench: error: ") and message in err and err.count("\n") == 1
+
+
+def test_reproduce_and_list_carry_the_classes(tmp_path, capsys):
+    run = tmp_path / "ci"
+    for r in [_rec("image-driven", BASE - STEP, model="bunny", faces=20),
+              _rec("qslim", BASE, model="bunny", faces=20)]:
+        write_record(run / "records" / f"{r['job']['key']}.json", r)
+    assert main(["reproduce", "--no-run", "--out", str(tmp_path), "--claims",
+                 "ci-image-driven,g2007-torus"]) == 0
+    out = capsys.readouterr().out
+    with open(tmp_path / "claims.csv", newline="") as f:
+        rows = {r["claim"]: r for r in csv.DictReader(f)}
+    got = rows["ci-image-driven"]
+    assert (got["verdict"], got["class"], float(got["p"])) == ("holds", "holds", 2 / 2 ** 24)
+    assert float(got["effect"]) < 1 and float(got["sign_p"]) == 1.0
+    assert (rows["g2007-torus"]["verdict"], rows["g2007-torus"]["class"]) == ("no data", "")
+    line = next(x for x in out.splitlines() if x.startswith("ci-image-driven"))
+    assert line.split()[-3:] == ["holds", "holds", "1.19e-07"]
+    page = (tmp_path / "index.html").read_text()
+    assert "<th>class</th>" in page and "ci-image-driven: holds (holds)" in page
+    assert main(["list", "claims"]) == 0
+    listed = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[2:]}
+    assert "wilcoxon over views" in listed["ci-image-driven"]
+    assert "no test" in listed["wild-quadric-target"]
+    from bench.commands.list import claim_class_test
+
+    assert claim_class_test(Claim("t", "P", "s", "ssim", "a", at_least=0.7)) == \
+        "interval over views"

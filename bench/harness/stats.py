@@ -120,11 +120,15 @@ def interval(values, metric: str = "", confidence: float = CONFIDENCE,
 def record_intervals(record: dict) -> dict[str, list[float]]:
     """Metric name -> [lo, hi]: the record's stored ``intervals`` (records of schema 2
     on), or else computed from its ``per_view`` values (older records), for every
-    metric whose statistic of ``per_view`` reproduces its reported value."""
+    metric whose statistic of ``per_view`` reproduces its reported value. Computed ones
+    are kept in the record's dict (in memory; its file is not touched), so a report
+    that reads them twice (results.csv and the summary table) bootstraps once."""
     stored = record.get("intervals")
     if isinstance(stored, dict):
         return stored
-    return compute_intervals(record.get("metrics") or {}, record.get("per_view") or {})
+    record["intervals"] = compute_intervals(record.get("metrics") or {},
+                                            record.get("per_view") or {})
+    return record["intervals"]
 
 
 def compute_intervals(metrics: dict, per_view: dict) -> dict[str, list[float]]:
