@@ -14,6 +14,7 @@ import warnings
 from bench import __version__
 from bench.commands import baseline as baseline_cmd
 from bench.commands import check as check_cmd
+from bench.commands import compare as compare_cmd
 from bench.commands import history as history_cmd
 from bench.commands import list as list_cmd
 from bench.commands import one_line, stdout_closed
@@ -25,7 +26,8 @@ from bench.commands import warmup as warmup_cmd
 from bench.errors import BenchError
 
 COMMANDS = {"list": list_cmd, "simplify": simplify_cmd, "run": run_cmd, "report": report_cmd,
-            "baseline": baseline_cmd, "check": check_cmd, "history": history_cmd, "reproduce": reproduce_cmd,
+            "baseline": baseline_cmd, "check": check_cmd, "compare": compare_cmd,
+            "history": history_cmd, "reproduce": reproduce_cmd,
             "warmup": warmup_cmd}
 
 

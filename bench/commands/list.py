@@ -1,5 +1,7 @@
 """``bench list [methods|models|metrics|suites|claims]``: what is registered, from where,
-and whether it can run here; the named experiment suites and the papers' claims they test."""
+and whether it can run here; the named experiment suites and the papers' claims they test
+(with how each claim's class is decided: ``wilcoxon over views``, ``interval over views``,
+or ``no test`` for a metric without per-view values)."""
 
 from __future__ import annotations
 
@@ -45,8 +47,24 @@ def _claim_rows() -> list[dict]:
     from bench.harness.suites import SUITES
 
     return [{"name": c.name, "suite": c.suite, "source": c.source, "test": c.test,
-             "paper": c.paper or "qualitative", "detail": c.statement}
+             "class by": claim_class_test(c), "paper": c.paper or "qualitative",
+             "detail": c.statement}
             for s in SUITES.values() for c in s.claims]
+
+
+def claim_class_test(claim) -> str:
+    """How ``claim``'s class is decided (:mod:`bench.harness.claims`): a paired test
+    over the views, an interval over the views, or no test when its metric has no
+    per-view values (a metric registered as needing the images has them)."""
+    from bench.registry import registry
+
+    metrics = registry("metric")
+    per_view = False
+    if claim.metric in metrics and metrics.entry(claim.metric).available:
+        per_view = "images" in metrics.load(claim.metric).needs
+    if not per_view:
+        return "no test"
+    return "wilcoxon over views" if claim.against else "interval over views"
 
 
 def _row(kind: str, entry) -> dict:

@@ -1,7 +1,12 @@
 """``bench reproduce [--claims NAME,...] [--out DIR]``: run the suites that the papers'
 claims need (each in ``DIR/<suite>``, reusing its records as ``--resume`` does), decide
 every claim from the records, and write ``DIR/claims.csv`` and a Reproduction page
-(``DIR/index.html``)."""
+(``DIR/index.html``).
+
+Each claim has a verdict (how many of its rows pass) and a class (whether the
+difference is significant over the views: ``holds``, ``holds, not significant``, ``does
+not hold``, ``contradicted``, or ``no test`` without per-view values), with the deciding
+p-value after Holm's correction over its rows (:mod:`bench.harness.claims`)."""
 
 from __future__ import annotations
 
@@ -18,7 +23,8 @@ from bench.registry import suggest
 
 #: Columns of claims.csv, in order.
 CSV_COLUMNS = ["claim", "suite", "source", "statement", "metric", "method", "against",
-               "test", "paper", "paper_value", "rows", "passed", "worst", "verdict"]
+               "test", "paper", "paper_value", "rows", "passed", "worst", "verdict",
+               "class", "p", "effect", "sign_p", "side"]
 
 
 def add_parser(sub, name: str) -> None:
@@ -79,15 +85,21 @@ def run(args) -> int:
     page = write_reproduction(out, results, seconds)
     width = max(len(c.name) for c in claims)
     test_width = max([26] + [len(c.test) + 1 for c in claims])
-    print(f"{'claim':<{width}}  {'test':<{test_width}} {'paper':<22} {'ours':<28} verdict")
+    print(f"{'claim':<{width}}  {'test':<{test_width}} {'paper':<22} {'ours':<28} "
+          f"{'verdict':<15} {'class':<23} p")
     for res in results:
         print(one_line(f"{res.claim.name:<{width}}  {res.claim.test:<{test_width}} "
                        f"{res.claim.paper or 'qualitative':<22} {res.summary:<28} "
-                       f"{res.verdict}"))
+                       f"{res.verdict:<15} {res.klass or '':<23} {_p(res.p)}"))
     took = f" in {seconds / 60:.1f} min" if seconds is not None else ""
     print(f"bench: {len(results)} claims{took}; wrote {out / 'claims.csv'} and {page}",
           file=sys.stderr)
     return status
+
+
+def _p(p: float | None) -> str:
+    """A p-value for the table: 3 significant digits, empty when there is none."""
+    return "" if p is None else f"{p:.3g}"
 
 
 def _run_parser() -> argparse.ArgumentParser:
@@ -114,7 +126,10 @@ def _write_csv(out: Path, results: list) -> None:
                      "paper_value": "" if c.paper_value is None else c.paper_value,
                      "rows": len(res.rows), "passed": res.passed,
                      "worst": "" if worst is None or math.isnan(worst) else worst,
-                     "verdict": res.verdict})
+                     "verdict": res.verdict, "class": res.klass or "",
+                     **{k: "" if v is None else v for k, v in (
+                         ("p", res.p), ("effect", res.effect), ("sign_p", res.sign_p),
+                         ("side", res.side))}})
     try:
         out.mkdir(parents=True, exist_ok=True)
         write_atomic(out / "claims.csv", pd.DataFrame(rows, columns=CSV_COLUMNS)

@@ -25,7 +25,11 @@ The papers' claims (:mod:`bench.harness.claims`) are gated too: a baseline keeps
 verdict of every claim its run has records for, and a claim that held there (``holds``
 or ``holds, weaker``) and no longer holds is ``claim broken``, which fails the check;
 one that now holds and did not is ``claim holds``; another change of verdict is
-``changed``. A claim of the baseline the run cannot decide is ``missing``.
+``changed``. A claim of the baseline the run cannot decide is ``missing``. A baseline
+also keeps each claim's class (whether its difference is significant,
+:data:`~bench.harness.claims.CLASSES`; baselines made before have none): a claim whose
+class changed is ``class changed``, reported and never failing (the gate stays the
+exact verdict).
 
 A metric registered by a third-party package is checked like a built-in one, by its own
 ``higher_is_better``. A metric that raised in an ok job (its value missing, its error in
@@ -162,16 +166,18 @@ def make_baseline(records: list[dict]) -> dict:
         if errors:  # metrics that raised in an ok job (metrics.protocol.evaluate)
             entries[key]["metric_errors"] = errors
     out = {"schema": BASELINE_SCHEMA, "entries": dict(sorted(entries.items()))}
-    claims = claim_verdicts(records)
+    classes: dict[str, str] = {}
+    claims = claim_verdicts(records, classes)
     if claims:
-        out["claims"] = claims
+        out["claims"], out["claim_classes"] = claims, dict(sorted(classes.items()))
     return out
 
 
-def claim_verdicts(records: list[dict]) -> dict[str, str]:
+def claim_verdicts(records: list[dict], classes: dict | None = None) -> dict[str, str]:
     """Claim name -> verdict, for every claim of every suite that ``records`` have
     evidence for (a claim is scoped to its suite's models and budgets, so a run decides
-    the claims of the suite it ran, and no others unless it ran their jobs too)."""
+    the claims of the suite it ran, and no others unless it ran their jobs too). Their
+    classes go to ``classes`` when it is given."""
     from bench.harness.claims import evaluate_claim
     from bench.harness.suites import SUITES
 
@@ -181,6 +187,8 @@ def claim_verdicts(records: list[dict]) -> dict[str, str]:
             result = evaluate_claim(claim, records)
             if result.rows:
                 out[claim.name] = result.verdict
+                if classes is not None:
+                    classes[claim.name] = result.klass
     return dict(sorted(out.items()))
 
 
@@ -263,6 +271,11 @@ def baseline_problem(data) -> str | None:
     for name, verdict in claims.items():
         if verdict not in VERDICTS:
             return f"claim {_show(name)}: verdict {_show(verdict)} is not one of {VERDICTS}"
+    from bench.harness.claims import CLASSES
+
+    classes = data.get("claim_classes", {})
+    if not isinstance(classes, dict) or not all(v in CLASSES for v in classes.values()):
+        return f"'claim_classes' is not an object of classes ({', '.join(CLASSES)})"
     return None
 
 
@@ -326,11 +339,14 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
             slack = tolerance * abs(before) + 1e-12
             mark = "worse" if delta < -slack else "better" if delta > slack else "same"
             rows.append(Row(key, metric, before, after, mark))
-    return rows + _compare_claims(baseline.get("claims", {}), current.get("claims", {}))
+    return rows + _compare_claims(baseline.get("claims", {}), current.get("claims", {}),
+                                  baseline.get("claim_classes", {}),
+                                  current.get("claim_classes", {}))
 
 
-def _compare_claims(old: dict, new: dict) -> list[Row]:
-    """Rows for the claims' verdicts (see the module's docstring for the marks)."""
+def _compare_claims(old: dict, new: dict, old_classes: dict | None = None,
+                    new_classes: dict | None = None) -> list[Row]:
+    """Rows for the claims' verdicts and changed classes (the module's docstring)."""
     from bench.harness.claims import HOLDING
 
     rows = []
@@ -349,4 +365,7 @@ def _compare_claims(old: dict, new: dict) -> list[Row]:
         else:
             mark = "changed"
         rows.append(Row(f"claim {name}", "verdict", before, after, mark))
+        was, now = (old_classes or {}).get(name), (new_classes or {}).get(name)
+        if was is not None and now is not None and was != now:
+            rows.append(Row(f"claim {name}", "class", was, now, "class changed"))
     return rows

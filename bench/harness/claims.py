@@ -19,6 +19,32 @@ verdict                when
 ``does not hold``      no row passes
 ``no data``            no row could be made (the suite did not run, or its jobs failed)
 =====================  ==================================================================
+
+The verdict counts rows; the **class** (:data:`CLASSES`) asks whether the difference is
+real, from the per-view values of the records (:mod:`bench.harness.stats`, whose limits
+apply: views are not independent draws, and a test over them asks whether a method is
+better consistently across viewpoints of one model at one budget):
+
+* A ratio claim ("A beats B", with ``against``): in every row, the Wilcoxon signed-rank
+  test of A's per-view values against the threshold times B's (for a threshold of 1,
+  the plain paired differences), Holm-corrected over the claim's rows (its table).
+  ``holds``: every row significant (corrected p < :data:`~bench.harness.stats.ALPHA`)
+  in the claimed direction; ``contradicted``: some row significant the other way;
+  ``holds, not significant``: every row passes but not every one significantly;
+  ``does not hold``: the rest. Its p-value is the deciding one (the largest corrected
+  p of the rows; when contradicted, the smallest of the contradicting rows), its
+  effect the median per-view ratio A / B over every row's views, and a sign test over
+  the rows (:func:`~bench.harness.stats.sign_test`) is given beside it.
+* A threshold claim (a value on its own): in every row, the 95 % bootstrap interval of
+  the value over the views, and where it lies: wholly ``above`` or ``below`` the
+  threshold, or ``across`` it. ``holds``: every interval wholly on the passing side;
+  ``contradicted``: some interval wholly on the failing side; ``holds, not
+  significant``: every row passes, some interval across; ``does not hold``: the rest.
+* ``no test``: some row has no per-view values of the claim's metric (statistics of the
+  method, Hausdorff distances, silhouettes, parts and target distances are one number
+  per job): only the verdict decides.
+
+``bench check`` gates on the verdict; a change of class is reported, never failed.
 """
 
 from __future__ import annotations
@@ -26,10 +52,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["Claim", "ClaimResult", "VERDICTS", "HOLDING", "evaluate_claim", "claim_rows"]
+__all__ = ["CLASSES", "Claim", "ClaimResult", "VERDICTS", "HOLDING", "evaluate_claim",
+           "claim_rows"]
 
 #: The verdicts, best first.
 VERDICTS = ("holds", "holds, weaker", "mixed", "does not hold", "no data")
+#: The classes of a claim's statistical test (see the module's docstring).
+CLASSES = ("holds", "holds, not significant", "does not hold", "contradicted", "no test")
 #: Verdicts under which a claim counts as holding (for ``bench check``).
 HOLDING = ("holds", "holds, weaker")
 #: A claim's metric with this prefix is a statistic of the method's record
@@ -100,6 +129,16 @@ class ClaimResult:
     claim: Claim
     rows: list[dict] = field(default_factory=list)
     verdict: str = "no data"
+    #: the class of its test (:data:`CLASSES`); None without rows
+    klass: str | None = None
+    #: the deciding p-value (ratio claims), after Holm's correction over the rows
+    p: float | None = None
+    #: the median per-view ratio A / B over every row's views (ratio claims)
+    effect: float | None = None
+    #: the sign test over the rows: p of passing against failing rows (ratio claims)
+    sign_p: float | None = None
+    #: where the rows' intervals lie (threshold claims): above, below, across or mixed
+    side: str | None = None
 
     @property
     def passed(self) -> int:
@@ -191,7 +230,11 @@ def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
         other = got.get("against")
         theirs = _value(other, claim.metric) if other else math.nan
         value = (mine / theirs if theirs else math.nan) if other else mine  # nan stays
+        views = _views(got["method"], claim.metric)
         rows.append({"model": model, "target_faces": target, "shading": shading,
+                     "method_views": views,
+                     "against_views": _views(other, claim.metric) if other else None,
+                     "interval": None if other else _interval(got["method"], claim.metric),
                      "faces": _value(got["method"], "faces"), "method_value": mine,
                      "against_value": theirs, "value": value, "passes": claim.passes(value),
                      "method_key": got["method"]["job"].get("key"),
@@ -199,11 +242,92 @@ def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
     return rows
 
 
+def _views(record: dict, metric: str) -> list[float] | None:
+    """``record``'s per-view values of ``metric``, or None when it has none or they do
+    not make its reported value (then a test of them would be of something else)."""
+    from bench.harness.stats import consistent_views
+
+    return consistent_views(record, metric)
+
+
+def _interval(record: dict, metric: str) -> list[float] | None:
+    from bench.harness.stats import record_intervals
+
+    return record_intervals(record).get(metric)
+
+
+def _classify(result: ClaimResult) -> None:
+    """Set ``result``'s class and its test's figures (the module's docstring)."""
+    claim, rows = result.claim, result.rows
+    threshold = claim.below if claim.below is not None else claim.at_least
+    if claim.against:
+        _classify_ratio(result, threshold)
+        return
+    sides = []
+    for r in rows:
+        iv = r["interval"]
+        r["side"] = None if iv is None else "below" if iv[1] < threshold else \
+            "above" if iv[0] > threshold else "across"
+        sides.append(r["side"])
+    if None in sides:
+        result.klass = "no test"
+        return
+    passing = "below" if claim.below is not None else "above"
+    failing = "above" if passing == "below" else "below"
+    result.side = sides[0] if len(set(sides)) == 1 else "mixed"
+    if all(side == passing for side in sides):
+        result.klass = "holds"
+    elif failing in sides:
+        result.klass = "contradicted"
+    elif all(r["passes"] for r in rows):
+        result.klass = "holds, not significant"
+    else:
+        result.klass = "does not hold"
+
+
+def _classify_ratio(result: ClaimResult, threshold: float) -> None:
+    import numpy as np
+
+    from bench.harness.stats import ALPHA, holm, paired, sign_test
+
+    claim, rows = result.claim, result.rows
+    if any(r["method_views"] is None or r["against_views"] is None or
+           len(r["method_views"]) != len(r["against_views"]) for r in rows):
+        result.klass = "no test"
+        return
+    higher = claim.at_least is not None  # the claimed direction: A above t·B
+    tests = [paired(r["method_views"], [threshold * v for v in r["against_views"]],
+                    higher_is_better=higher) for r in rows]
+    corrected = holm([t.p for t in tests])
+    for r, t, p in zip(rows, tests, corrected):
+        r.update(p=t.p, p_holm=p, direction=t.direction, share_claimed=t.a_better,
+                 share_other=t.b_better)
+    significant = [p < ALPHA for p in corrected]
+    against = [p for p, s, t in zip(corrected, significant, tests) if s and t.direction < 0]
+    if against:
+        result.klass, result.p = "contradicted", min(against)
+    else:
+        result.p = max(corrected)
+        if all(s and t.direction > 0 for s, t in zip(significant, tests)):
+            result.klass = "holds"
+        elif all(r["passes"] for r in rows):
+            result.klass = "holds, not significant"
+        else:
+            result.klass = "does not hold"
+    a = np.concatenate([np.asarray(r["method_views"], float) for r in rows])
+    b = np.concatenate([np.asarray(r["against_views"], float) for r in rows])
+    ratios = a[b != 0] / b[b != 0]
+    result.effect = float(np.median(ratios)) if len(ratios) else None
+    passed = result.passed
+    result.sign_p = sign_test(passed, len(rows) - passed)
+
+
 def evaluate_claim(claim: Claim, records: list[dict]) -> ClaimResult:
     """``claim``'s rows in ``records`` and its verdict (see the module's table)."""
     result = ClaimResult(claim, claim_rows(claim, records))
     if not result.rows:
         return result
+    _classify(result)
     passed = result.passed
     if passed == 0:
         result.verdict = "does not hold"

@@ -56,6 +56,7 @@ from bench.harness.results import (
     write_file,
     write_record,
 )
+from bench.harness.stats import compute_intervals
 from metrics.protocol import Protocol
 
 __all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "canonical_label", "environment",
@@ -315,6 +316,7 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     ev, view_stats = evaluate_result(mesh, simplified, job.protocol, reference)
     stats.update(view_stats)
     record.update(metrics=ev.metrics, per_view=ev.per_view, seconds=ev.seconds,
+                  intervals=compute_intervals(ev.metrics, ev.per_view),
                   silhouette_histogram=ev.silhouette_histogram,
                   status=result_status(simplified.mesh.n_faces, job.target_faces))
     if ev.errors:  # metrics that raised: the job is ok, those values are missing

@@ -1,6 +1,7 @@
 """The "Reproduction" page of ``bench reproduce``: ``DIR/index.html``.
 
-A table of every claim (paper, figure, test, the paper's figure, ours, verdict), then
+A table of every claim (paper, figure, test, the paper's figure, ours, verdict, and the
+class, p-value and effect of its test over the views), then
 per claim its evidence: the rows it was decided on, the two methods' values over the
 budgets (when it has several), and the first protocol view of the worst row for each
 method, linking the full image of the suite's run folder ``DIR/<suite>/`` (whose own
@@ -45,16 +46,24 @@ def write_reproduction(out_dir: Path, results: list[ClaimResult], seconds: float
             f"<tr><td><a href='#c-{quote(c.name)}'>{esc(c.name)}</a></td><td>{esc(c.source)}"
             f"</td><td>{esc(c.test)}</td><td>{esc(c.paper or 'qualitative')}</td>"
             f"<td>{esc(res.summary)}</td><td class='{_VERDICT_CLASS[res.verdict]}'>"
-            f"{esc(res.verdict)}</td></tr>")
+            f"{esc(res.verdict)}</td><td>{esc(res.klass or '')}</td><td>{_num(res.p, 3)}"
+            f"</td><td>{_num(res.effect)}{esc(_side(res))}</td></tr>")
     head = ("<table><thead><tr><th>claim</th><th>source</th><th>test</th><th>paper</th>"
-            "<th>ours</th><th>verdict</th></tr></thead><tbody>" + "".join(rows)
-            + "</tbody></table>")
+            "<th>ours</th><th>verdict</th><th>class</th><th>p</th><th>effect</th></tr>"
+            "</thead><tbody>" + "".join(rows) + "</tbody></table>")
     took = f" The suites ran in {seconds / 60:.1f} min." if seconds is not None else ""
     parts = ["<h1>Reproduction: the papers' claims under this protocol</h1>",
              f"<p class='note'>Every verdict is computed from the records of the suite "
              f"runs in this folder (one folder per suite, each with its own report).{took} "
              "A ratio is the first method's value over the second's on the same model, "
-             "budget and shading.</p>", head]
+             "budget and shading. The verdict counts the rows that pass; the class says "
+             "whether the difference is significant over the views: for a ratio, Wilcoxon "
+             "signed-rank tests of the per-view values, Holm-corrected over the claim's "
+             "rows (p is the deciding corrected p-value, the effect the median per-view "
+             "ratio); for a value against a threshold, where its 95 % bootstrap interval "
+             "over the views lies. Views are not independent draws: a test asks whether a "
+             "method is better consistently across the viewpoints of one model, not on "
+             "other models. <i>no test</i>: the metric has no per-view values.</p>", head]
     parts += [_section(out_dir, res, files) for res in results]
     if refused:
         parts.insert(1, "<div class='warnings'><p>Left out:</p><ul>"
@@ -65,7 +74,8 @@ def write_reproduction(out_dir: Path, results: list[ClaimResult], seconds: float
 def _section(out_dir: Path, res: ClaimResult, files: RunFiles) -> str:
     c = res.claim
     vs = f" against <b>{esc(c.against)}</b>" if c.against else ""
-    parts = [f"<h2 id='c-{quote(c.name)}'>{esc(c.name)}: {esc(res.verdict)}</h2>",
+    klass = f" ({esc(res.klass)})" if res.klass else ""
+    parts = [f"<h2 id='c-{quote(c.name)}'>{esc(c.name)}: {esc(res.verdict)}{klass}</h2>",
              f"<p>{esc(c.statement)} ({esc(c.source)}). <b>{esc(c.method)}</b>{vs}, "
              f"{esc(c.test)}; the paper: {esc(c.paper or 'qualitative')}. Suite "
              f"<a href='{quote(c.suite)}/index.html'>{esc(c.suite)}</a>.</p>"]
@@ -76,13 +86,21 @@ def _section(out_dir: Path, res: ClaimResult, files: RunFiles) -> str:
         return "\n".join(parts)
     header = ["model", "target", "faces", "shading", c.method]
     if c.against:
-        header += [c.against, "ratio"]
+        header += [c.against, "ratio", "views claimed way", "p (Holm)"]
+    else:
+        header += ["95 % interval", "side"]
     body = []
     for r in res.rows:
         cells = [esc(r["model"]), str(r["target_faces"]), _num(r["faces"], 6),
                  esc(r["shading"]), _num(r["method_value"])]
         if c.against:
-            cells += [_num(r["against_value"]), _num(r["value"])]
+            share = r.get("share_claimed")
+            cells += [_num(r["against_value"]), _num(r["value"]),
+                      "" if share is None else f"{share:.0%}", _num(r.get("p_holm"), 3)]
+        else:
+            iv = r.get("interval")
+            cells += ["" if iv is None else f"{_num(iv[0])} to {_num(iv[1])}",
+                      esc(r.get("side") or "")]
         mark = "" if r["passes"] else " class='failed'"
         body.append(f"<tr{mark}>" + "".join(f"<td>{x}</td>" for x in cells) + "</tr>")
     parts.append("<table><thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header)
@@ -90,6 +108,11 @@ def _section(out_dir: Path, res: ClaimResult, files: RunFiles) -> str:
     parts.append(_curve(res, files))
     parts.append(_views(out_dir, res, files))
     return "\n".join(p for p in parts if p)
+
+
+def _side(res: ClaimResult) -> str:
+    """Where a threshold claim's intervals lie, for the table's effect column."""
+    return f"intervals {res.side}" if res.side else ""
 
 
 def _curve(res: ClaimResult, files: RunFiles) -> str:

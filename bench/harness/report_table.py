@@ -4,7 +4,9 @@ One row per record: failed and skipped jobs first, with the first line of their 
 as the reason; numbers right-aligned, each column's unit and direction (from the
 metric's registration, :class:`bench.metric.Metric`) in a second header row; in each
 group of ok jobs of one model, budget and evaluation shading, the best value of each
-metric that has a direction is marked. Every string from a record is HTML-escaped.
+metric that has a direction is marked. A value with per-view values carries its 95 %
+bootstrap interval over the views as the cell's tooltip
+(:func:`bench.harness.stats.record_intervals`). Every string from a record is HTML-escaped.
 
 The script (:data:`SCRIPT`) is the page's only one and needs no network: a click on a
 header sorts the rows by that column (numbers as numbers, empty cells last; a second
@@ -97,7 +99,11 @@ def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
     metrics = metric_info()
     best = _best_cells(table, {c: up for c, (_, up) in metrics.items()
                                if c in table.columns and up is not None})
-    rows = [_row(table.iloc[i], i, reasons[i], columns, best, links)
+    from bench.harness.results import evaluated
+    from bench.harness.stats import record_intervals
+
+    intervals = [record_intervals(r) if evaluated(r) else {} for r in records]
+    rows = [_row(table.iloc[i], i, reasons[i], columns, best, links, intervals[i])
             for i in sorted(range(len(table)), key=lambda i: _STATUS_ORDER.get(table.status.iat[i], 2))]
     heads = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
     units = "".join(_unit_cell(c, metrics) for c in columns)
@@ -121,12 +127,15 @@ _HOW_TO_READ = (
     "<p class='note'>Click a column header to sort (again to reverse); the box shows only "
     "the rows that contain every word typed. Units are under the names; ↓ lower is better, "
     "↑ higher is better, and the best value of each model, budget and shading is "
-    "<span class='best'>marked</span>. Failed and skipped jobs come first, with their "
+    "<span class='best'>marked</span> (the lowest or highest value, which need not be "
+    "significantly better: bench compare tests it view by view). A value with per-view "
+    "values shows its 95 % bootstrap interval over the views when pointed at. Failed and skipped jobs come first, with their "
     "reason.</p><p><input id='filter' type='search' size='40' "
     "placeholder='filter, e.g. bunny qslim' aria-label='filter the summary table'></p>")
 
 
-def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict) -> str:
+def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict,
+         intervals: dict | None = None) -> str:
     cells = []
     for c in columns:
         if c == "reason":
@@ -136,7 +145,11 @@ def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict) -
         text = cell(row[c])
         if c == "model" and row[c] in links:
             text = f"<a href='{links[row[c]]}'>{text}</a>"
-        cells.append(f"<td class='best'>{text}</td>" if (i, c) in best else f"<td>{text}</td>")
+        lo_hi = (intervals or {}).get(c)
+        title = (f" title='95 % interval over views: {lo_hi[0]:.4g} to {lo_hi[1]:.4g}'"
+                 if lo_hi and text else "")
+        mark = " class='best'" if (i, c) in best else ""
+        cells.append(f"<td{mark}{title}>{text}</td>")
     status = row["status"]
     cls = f" class='{esc(status.replace(', ', '-').replace(' ', '-'))}'" if status != "ok" else ""
     return f"<tr{cls}>{''.join(cells)}</tr>"

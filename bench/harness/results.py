@@ -2,11 +2,12 @@
 
 Schema (``schema`` = :data:`SCHEMA_VERSION`)::
 
-    {"schema": 1, "status": "ok" | "failed" | "skipped", "error": str | null,
+    {"schema": 2, "status": "ok" | "failed" | "skipped", "error": str | null,
      "job": {"model", "method", "params", "label", "target_faces", "protocol": {...}},
      "model": {"name", "hash", "faces", "render_vertices", "welded_vertices"},
      "method": {"name", "version", "view_dependent"},
-     "metrics": {...}, "per_view": {...}, "silhouette_histogram": [...],
+     "metrics": {...}, "per_view": {...}, "intervals": {name: [lo, hi]},
+     "silhouette_histogram": [...],
      "metric_errors": {name: error} (only when a metric raised; its value is missing),
      "stats": {...}, "seconds": {...}, "stop_reason": str | null,
      "environment": {"versions", "git_commit", "machine",
@@ -18,8 +19,15 @@ Records are written atomically (:func:`bench.io.atomic.write_atomic`), so an
 interrupted run leaves only complete records and ``--resume`` can trust what it finds.
 A job's images are written (atomically too) before its record, so a record also means
 its images exist.
-A record of a newer schema is refused; older ones would be migrated by
-:func:`load_record`.
+A record of a newer schema is refused; older ones are read as they are.
+
+Schema 2 added ``intervals``: the 95 % bootstrap interval over the views of every metric
+with per-view values (:func:`bench.harness.stats.compute_intervals`), computed when the
+record is written. A schema-1 record has none; whatever reads intervals asks
+:func:`bench.harness.stats.record_intervals`, which computes them from its ``per_view``
+with the same function and seed, so old and new records report the same interval for
+the same views. results.csv adds ``NAME_lo`` and ``NAME_hi`` columns after the others
+for every metric that some record has an interval of (:func:`write_table`).
 
 A run folder may come from someone else (a CI artifact, a colleague's study), so every
 record is untrusted input: :func:`load_record` checks its shape and the types of the
@@ -45,6 +53,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "STATUSES",
     "evaluated",
+    "interval_table",
     "load_record",
     "load_records",
     "metric_columns",
@@ -57,7 +66,7 @@ __all__ = [
     "write_table",
 ]
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 #: The statuses a record can have: ``ok``, ``ok, off target`` (evaluated, but its face
 #: count is more than :data:`OFF_TARGET` away from the target: compared with nothing
@@ -297,6 +306,15 @@ def _number_lists(values: dict) -> str | None:
     return None
 
 
+def _pairs(values) -> str | None:
+    if not isinstance(values, dict):
+        return f"must be an object, got {_kind(values)}"
+    for name, pair in values.items():
+        if not (_number_list(pair) and len(pair) == 2):
+            return f"has {_show(name)} that is not a pair of numbers [lo, hi]"
+    return None
+
+
 def _number_list(values) -> bool:
     return isinstance(values, list) and all(_is_number(v) for v in values)
 
@@ -325,6 +343,7 @@ _PARTS = {
     "method": lambda v: None if isinstance(v, dict) else f"must be an object, got {_kind(v)}",
     "metrics": _numbers_or_null,
     "per_view": _number_lists,
+    "intervals": _pairs,
     "silhouette_histogram": lambda v: None if _number_list(v) else "must be a list of numbers",
     "stats": lambda v: None if isinstance(v, dict) else f"must be an object, got {_kind(v)}",
     "seconds": lambda v: None if isinstance(v, dict) else f"must be an object, got {_kind(v)}",
@@ -396,8 +415,24 @@ def records_table(records: list[dict]):
     return pd.DataFrame(rows, columns=CSV_COLUMNS + extra)
 
 
+def interval_table(records: list[dict]):
+    """:func:`records_table` of ``records`` with, after its columns, ``NAME_lo`` and
+    ``NAME_hi`` for every metric some record has an interval of
+    (:func:`bench.harness.stats.record_intervals`), empty where a record has none."""
+    from bench.harness.stats import record_intervals
+
+    table = records_table(records)
+    intervals = [record_intervals(r) if evaluated(r) else {} for r in records]
+    names = sorted(set().union(*intervals), key=lambda n: (n not in CSV_COLUMNS, n))
+    for name in names:
+        for end, side in (("lo", 0), ("hi", 1)):
+            table[f"{name}_{end}"] = [iv[name][side] if name in iv else None
+                                      for iv in intervals]
+    return table
+
+
 def write_table(run_dir: Path, records: list[dict]) -> Path:
     """Write ``run_dir/results.csv`` (atomically: a spreadsheet open on it, or a second
-    ``bench report``, never sees half a table)."""
-    text = records_table(records).to_csv(index=False, float_format="%.6g")
+    ``bench report``, never sees half a table): :func:`interval_table` of ``records``."""
+    text = interval_table(records).to_csv(index=False, float_format="%.6g")
     return write_atomic(Path(run_dir) / "results.csv", text)
