@@ -7,7 +7,7 @@ import pytest
 from bench.mesh import Mesh
 from bench.method import run_method
 from bench.registry import registry
-from bench_example.area import AREA_RATIO, area_ratio
+from bench_example.area import AREA_CHANGE, area_change
 from bench_example.clustering import VertexClustering, cluster
 
 
@@ -53,22 +53,24 @@ def test_the_method_reaches_at_most_its_target_and_keeps_uvs():
     assert set(map(tuple, result.mesh.uv.tolist())) <= set(map(tuple, mesh.uv.tolist()))
 
 
-def test_area_ratio_is_exact_on_a_half_square():
+def test_area_change_is_exact_on_a_half_and_a_doubled_square():
     square = grid(1)
     half = square.keep_faces(square.faces[:1])
-    assert area_ratio(square, square, {}) == 1.0
-    assert area_ratio(square, half, {}) == 0.5
-    assert AREA_RATIO.direction == "descriptive"
+    doubled = square.replace(positions=square.positions * [2.0, 1.0, 1.0])
+    assert area_change(square, square, {}) == 0.0
+    assert area_change(square, half, {}) == 0.5
+    assert area_change(square, doubled, {}) == 1.0
+    assert AREA_CHANGE.direction == "lower is better"
 
 
-def test_area_ratio_is_undefined_without_area():
+def test_area_change_is_undefined_without_area():
     flat = Mesh([[0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1, 2]])
-    assert area_ratio(flat, flat, {}) is None
+    assert area_change(flat, flat, {}) is None
 
 
 @pytest.mark.parametrize("kind, name", [("method", "vertex-clustering"),
-                                        ("metric", "area_ratio")])
+                                        ("metric", "area_change")])
 def test_registered_through_its_entry_point(kind, name):
     entry = registry(kind).entry(name)
     assert entry.available, entry.problem
-    assert entry.load() is (VertexClustering if kind == "method" else AREA_RATIO)
+    assert entry.load() is (VertexClustering if kind == "method" else AREA_CHANGE)
