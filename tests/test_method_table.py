@@ -11,7 +11,7 @@ HEADER = "model,method,shading,target_faces,d_rms,hausdorff_mean,seam_cracks,sec
 def _table(tmp_path, rows: str):
     csv = tmp_path / "results.csv"
     csv.write_text(HEADER + rows)
-    return subprocess.run([sys.executable, str(SCRIPT), str(csv)], capture_output=True,
+    return subprocess.run([sys.executable, str(SCRIPT), str(csv)], capture_output=True, check=False,
                           text=True)
 
 
@@ -33,10 +33,10 @@ def test_ratios_to_the_best_of_each_cell_and_skipped_jobs_counted(tmp_path):
 def test_not_a_results_csv_is_one_line(tmp_path):
     other = tmp_path / "other.csv"
     other.write_text("a,b\n1,2\n")
-    out = subprocess.run([sys.executable, str(SCRIPT), str(other)], capture_output=True,
+    out = subprocess.run([sys.executable, str(SCRIPT), str(other)], capture_output=True, check=False,
                          text=True)
     assert out.returncode == 2
     assert out.stderr.startswith("method_table: error: ") and out.stderr.count("\n") == 1
     missing = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path / "none.csv")],
-                             capture_output=True, text=True)
+                             capture_output=True, text=True, check=False)
     assert missing.returncode == 2 and "No such file" in missing.stderr

@@ -3,12 +3,12 @@ both found by bench through their entry points once the package is installed."""
 
 import numpy as np
 import pytest
+from bench_example.area import AREA_CHANGE, area_change
+from bench_example.clustering import VertexClustering, cluster
 
 from bench.mesh import Mesh
 from bench.method import run_method
 from bench.registry import registry
-from bench_example.area import AREA_CHANGE, area_change
-from bench_example.clustering import VertexClustering, cluster
 
 
 def grid(n: int, uv: bool = False) -> Mesh:
