@@ -16,7 +16,7 @@ from bench.commands import baseline as baseline_cmd
 from bench.commands import check as check_cmd
 from bench.commands import history as history_cmd
 from bench.commands import list as list_cmd
-from bench.commands import one_line
+from bench.commands import one_line, stdout_closed
 from bench.commands import report as report_cmd
 from bench.commands import reproduce as reproduce_cmd
 from bench.commands import run as run_cmd
@@ -59,6 +59,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("bench: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of standard output left (`| head`): stop quietly
+        stdout_closed()
+        return 141  # as a shell reports a process ended by SIGPIPE
 
 
 def entry() -> None:  # console script

@@ -14,6 +14,16 @@ A method is a class with class attributes describing it and one ``simplify`` cal
 
         def simplify(self, mesh, target_faces, ctx=None) -> SimplifyResult: ...
 
+Every parameter is checked by one rule (:func:`check_params`) when a method is made and
+when parameters are parsed: a float must be finite (NaN, which compares false both
+ways, would slip past any ``x < 0`` test, and infinity is no weight), and a number
+must lie in the range its field declares with :func:`bounded`::
+
+        @dataclass
+        class Params:
+            strength: float = bounded(1.0, ge=0)     # >= 0
+            angle: float = bounded(90.0, gt=0, le=180)
+
 Register it under the ``bench.methods`` entry-point group and it appears in
 ``bench list methods`` and can be used by ``bench simplify`` and ``bench run``.
 
@@ -26,6 +36,8 @@ model's ``content_hash``, its parameters and its version).
 from __future__ import annotations
 
 import dataclasses
+import math
+import numbers
 import time
 import typing
 import warnings
@@ -36,8 +48,8 @@ from bench.errors import BenchError, InputError, MethodError, ParamError
 from bench.mesh import Mesh
 from bench.registry import suggest
 
-__all__ = ["Method", "SimplifyResult", "canonical_params", "parse_params", "resolve_target",
-           "run_method", "target_tolerance"]
+__all__ = ["Method", "SimplifyResult", "bounded", "canonical_params", "check_params",
+           "parse_params", "resolve_target", "run_method", "target_tolerance"]
 
 
 @dataclass
@@ -94,7 +106,7 @@ class Method:
             params = self.Params()
         if overrides:
             params = dataclasses.replace(params, **overrides)
-        self.params = params
+        self.params = check_params(params)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx: Any = None) -> SimplifyResult:
         raise NotImplementedError
@@ -179,7 +191,40 @@ def parse_params(params_cls: type, items: list[str] | None) -> Any:
             hint = suggest(key, fields)
             raise ParamError(f"unknown parameter '{key}'{hint} (accepted: {known})")
         values[key] = _convert(key, raw.strip(), hints[key])
-    return params_cls(**values)
+    return check_params(params_cls(**values))
+
+
+def bounded(default, *, ge=None, gt=None, le=None, lt=None):
+    """A Params field with a default and a declared range (``ge`` <= value, ``gt`` <
+    value, value <= ``le``, value < ``lt``; None: no bound), which :func:`check_params`
+    enforces for every method alike."""
+    bounds = {name: limit for name, limit in (("ge", ge), ("gt", gt), ("le", le), ("lt", lt))
+              if limit is not None}
+    return field(default=default, metadata={"range": bounds})
+
+
+#: How each bound reads in a message, and the test it stands for.
+_BOUNDS = {"ge": (">=", lambda v, b: v >= b), "gt": (">", lambda v, b: v > b),
+           "le": ("<=", lambda v, b: v <= b), "lt": ("<", lambda v, b: v < b)}
+
+
+def check_params(params):
+    """``params`` (a Params dataclass instance) if every value passes the shared rule:
+    each float finite, each number within its field's declared range (:func:`bounded`);
+    :class:`ParamError` naming the first parameter that does not, otherwise."""
+    if not dataclasses.is_dataclass(params):
+        return params
+    for f in dataclasses.fields(params):
+        value = getattr(params, f.name)
+        if not isinstance(value, numbers.Real) or isinstance(value, bool):
+            continue
+        if not math.isfinite(value):
+            raise ParamError(f"parameter '{f.name}' must be a finite number, got {value}")
+        bounds = f.metadata.get("range", {})
+        if not all(_BOUNDS[k][1](value, b) for k, b in bounds.items()):
+            wanted = " and ".join(f"{_BOUNDS[k][0]} {b:g}" for k, b in bounds.items())
+            raise ParamError(f"parameter '{f.name}' must be {wanted}, got {value:g}")
+    return params
 
 
 def canonical_params(params_cls: type, params: dict) -> dict:

@@ -78,8 +78,15 @@ class Entry:
             else:
                 self._problem = f"cannot import {module}; try: pip install {module}"
             return
-        except Exception as exc:  # a broken plug-in must not break `bench list`
-            self._problem = f"failed to load {self.target}: {type(exc).__name__}: {exc}"
+        except SystemExit as exc:  # sys.exit() on import must not end bench (with code 0)
+            self._problem = (f"failed to load {self.target}: it called sys.exit({exc.code!r}) "
+                             "on import")
+            return
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:  # noqa: BLE001 - a broken plug-in must not break bench
+            self._problem = (f"failed to load {self.target}: {type(exc).__name__}: "
+                             f"{' '.join(str(exc).split())}")
             return
         missing = [pip for mod, pip in getattr(self._object, "requires", {}).items()
                    if importlib.util.find_spec(mod) is None]
@@ -101,6 +108,15 @@ class Entry:
         """Why the entry is unavailable, with the fix; None when it is available."""
         self._load()
         return self._problem
+
+    def definition(self):
+        """The registered object even when a backend it runs on is missing, for what it
+        declares (a metric's unit and direction); UnavailableError when it could not be
+        imported at all."""
+        self._load()
+        if self._object is None:
+            raise UnavailableError(f"{self.kind} '{self.name}' cannot be loaded: {self._problem}")
+        return self._object
 
     def load(self):
         """The registered object; raises UnavailableError with the fix if it cannot run."""

@@ -18,7 +18,7 @@ import numpy as np
 
 from bench.errors import InputError
 from bench.mesh import Mesh, compact
-from bench.method import Method, SimplifyResult
+from bench.method import Method, SimplifyResult, bounded
 
 __all__ = ["FastSimplification", "QSlim", "QSlimTexture", "fewest_faces"]
 
@@ -27,14 +27,14 @@ __all__ = ["FastSimplification", "QSlim", "QSlimTexture", "fewest_faces"]
 class QSlimParams:
     """Parameters of MeshLab's quadric edge collapse (names as in pymeshlab)."""
 
-    qualitythr: float = 0.3
+    qualitythr: float = bounded(0.3, ge=0, le=1)
     preserveboundary: bool = False
-    boundaryweight: float = 1.0
+    boundaryweight: float = bounded(1.0, ge=0)
     preservenormal: bool = False
     preservetopology: bool = False
     optimalplacement: bool = True
     planarquadric: bool = False
-    planarweight: float = 0.001
+    planarweight: float = bounded(0.001, ge=0)
     qualityweight: bool = False
     autoclean: bool = True
 
@@ -43,10 +43,10 @@ class QSlimParams:
 class QSlimTextureParams:
     """Parameters of MeshLab's quadric edge collapse with texture (names as in pymeshlab)."""
 
-    qualitythr: float = 0.3
-    extratcoordw: float = 1.0
+    qualitythr: float = bounded(0.3, ge=0, le=1)
+    extratcoordw: float = bounded(1.0, ge=0)
     preserveboundary: bool = False
-    boundaryweight: float = 1.0
+    boundaryweight: float = bounded(1.0, ge=0)
     optimalplacement: bool = True
     preservenormal: bool = False
     planarquadric: bool = False
@@ -148,7 +148,7 @@ class FastSimplification(Method):
 
     @dataclass
     class Params:
-        agg: float = 7.0
+        agg: float = bounded(7.0, ge=0)
         weld: bool = True
         preserve_border: bool = False
 

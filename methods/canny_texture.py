@@ -62,7 +62,7 @@ from typing import Literal
 
 from bench.errors import InputError
 from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult
+from bench.method import Method, SimplifyResult, bounded
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh
 
@@ -86,15 +86,15 @@ class CannyTexture(Method):
     @dataclass
     class Params:
         base: Literal["quadric", "memoryless"] = "quadric"
-        canny_weight: float = 1.0
+        canny_weight: float = bounded(1.0, ge=0)
         #: "base-cost": the area ratio in the base cost's units (see the module notes);
         #: "area": the area ratio added as it is to costs at unit diagonal (version 4)
         canny_units: Literal["base-cost", "area"] = "base-cost"
-        sigma: float = 0.75
-        low: float = 0.5
-        high: float = 0.6
-        max_normal_rotation: float = 90.0
-        texture_weight: float = 1.0  # of the quadric base, as in ``quadric``
+        sigma: float = bounded(0.75, ge=0)
+        low: float = bounded(0.5, ge=0, le=1)
+        high: float = bounded(0.6, ge=0, le=1)
+        max_normal_rotation: float = bounded(90.0, gt=0, le=180)
+        texture_weight: float = bounded(1.0, ge=0)  # of the quadric base, as in ``quadric``
 
     def policy(self) -> Policy:
         p = self.params

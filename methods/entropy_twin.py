@@ -93,7 +93,7 @@ import numpy as np
 
 from bench.errors import ParamError
 from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult
+from bench.method import Method, SimplifyResult, bounded
 from methods.engine.policy import Policy
 from methods.engine.scale import at_workable_scale
 from methods.engine.simplify import simplify_mesh
@@ -239,25 +239,25 @@ class EntropyTwin(Method):
 
     @dataclass
     class Params:
-        views: int = 20
-        resolution: int = 256
+        views: int = bounded(20, ge=1)
+        resolution: int = bounded(256, ge=8, le=2048)
         #: count the background as a face in the entropy (Vázquez et al.)
         background: bool = True
         #: the Canny texture-border term (González 2007); used on textured meshes only
         canny: bool = True
         #: per view: the penalty enters the cost canny_weight x views times
-        canny_weight: float = 1.0
+        canny_weight: float = bounded(1.0, ge=0)
         #: the α, β texture-coordinate correction of §3
         uv_correction: bool = True
         #: Algorithm 3 at the end; normals_angle in degrees (negative: keep no normals)
-        normals_angle: float = NORMALS_ANGLE
+        normals_angle: float = bounded(NORMALS_ANGLE, le=180)
         #: the engine's seam rule (seam vertices move only along their seam)
         seam_rule: bool = False
         #: a boundary vertex is never merged into an interior one
         boundary_rule: bool = True
-        max_normal_rotation: float = 90.0
+        max_normal_rotation: float = bounded(90.0, gt=0, le=180)
         #: faces after a quadric pre-simplification; 0: twenty times the target; -1: none
-        presimplify_faces: int = 0
+        presimplify_faces: int = bounded(0, ge=-1)
         #: where the kept vertex goes: "endpoints" (a half-edge collapse, the paper's) or
         #: "optimal" (the quadric's point, a full-edge collapse; for ablation)
         placement: str = "endpoints"

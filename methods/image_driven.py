@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 from bench.errors import ParamError
 from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult
+from bench.method import Method, SimplifyResult, bounded
 from methods.engine.policy import Policy
 from methods.engine.scale import at_workable_scale
 from methods.engine.simplify import simplify_mesh
@@ -73,13 +73,13 @@ class ImageDriven(Method):
         #: "flat" or "gouraud"; empty: the evaluation protocol's shading (flat outside a run)
         shading: str = ""
         specular: bool = False
-        resolution: int = 256
-        views: int = 20
+        resolution: int = bounded(256, ge=8, le=2048)
+        views: int = bounded(20, ge=1)
         #: faces after the memoryless pre-simplification; 0: ten times the target
-        presimplify_faces: int = 0
-        interior_views: int = 0
+        presimplify_faces: int = bounded(0, ge=0)
+        interior_views: int = bounded(0, ge=0)
         #: weight of the memoryless cost added as a tie-breaker (see the module notes)
-        geometry_weight: float = 1.0
+        geometry_weight: float = bounded(1.0, ge=0)
 
     def _check(self):
         p = self.params

@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult
+from bench.method import Method, SimplifyResult, bounded
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh
 
@@ -39,7 +39,7 @@ class Memoryless(Method):
 
     @dataclass
     class Params:
-        max_normal_rotation: float = 90.0
+        max_normal_rotation: float = bounded(90.0, gt=0, le=180)
         boundary_lock: bool = False
 
     def policy(self) -> Policy:

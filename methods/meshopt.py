@@ -56,7 +56,7 @@ import numpy as np
 
 from bench.errors import MeshWarning, MethodError, ParamError
 from bench.mesh import Mesh, compact
-from bench.method import Method, SimplifyResult, target_tolerance
+from bench.method import Method, SimplifyResult, bounded, target_tolerance
 
 __all__ = [
     "LIBRARY_VERSION",
@@ -308,7 +308,7 @@ class MeshoptParams:
     """
 
     bound_error: bool = False
-    target_error: float = 0.01  #: used only with bound_error
+    target_error: float = bounded(0.01, ge=0)  #: used only with bound_error
     lock_border: bool = False  #: 'LockBorder': never move border vertices
     prune: bool = False  #: 'Prune': remove isolated components (needs bound_error)
     error_absolute: bool = False  #: 'ErrorAbsolute': errors in model units
@@ -328,8 +328,8 @@ class MeshoptAttributesParams(MeshoptParams):
     positions and attributes together.
     """
 
-    normal_weight: float = 0.5
-    uv_weight_scale: float = 1.0
+    normal_weight: float = bounded(0.5, ge=0)
+    uv_weight_scale: float = bounded(1.0, ge=0)
 
 
 @dataclass
@@ -353,7 +353,7 @@ class MeshoptSloppyParams:
     :class:`MeshoptParams`, always relative to the mesh's extent."""
 
     bound_error: bool = False
-    target_error: float = 0.01  #: used only with bound_error
+    target_error: float = bounded(0.01, ge=0)  #: used only with bound_error
 
 
 PROTECT_CHOICES = ("orientation", "seams", "none")
@@ -531,7 +531,7 @@ class GltfpackParams:
     normals come back as 32-bit floats, as the suite wrote them.
     """
 
-    target_error: float = 0.01
+    target_error: float = bounded(0.01, ge=0)
     attributes: bool = True
     permissive: bool = False
     aggressive: bool = False

@@ -90,7 +90,7 @@ from typing import Literal
 import numpy as np
 
 from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult
+from bench.method import Method, SimplifyResult, bounded
 from methods.mt.cache import mt_and_bounds
 from methods.mt.errors import ERRORS, FEATURE_SIZES
 from methods.mt.refine import REFINEMENTS, Refiner
@@ -146,10 +146,10 @@ class PerceptualMT(Method):
         error: Literal["perceptual", "object", "screen", "screen-silhouette"] = "perceptual"
         lighting: Literal["auto", "none", "flat", "gouraud"] = "auto"
         specular: Literal["auto", "true", "false"] = "auto"
-        ppd: float = 32.0
-        peak_sensitivity: float = 200.0
-        silhouette_factor: float = 10.0
-        texture_weight: float = 1.0
+        ppd: float = bounded(32.0, gt=0)
+        peak_sensitivity: float = bounded(200.0, gt=0)
+        silhouette_factor: float = bounded(10.0, ge=0)
+        texture_weight: float = bounded(1.0, ge=0)
         # ablation switches (the docstring's "Ablation switches"); defaults: the method
         silhouette_contrast: bool = True
         lighting_contrast: bool = True

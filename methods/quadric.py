@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult
+from bench.method import Method, SimplifyResult, bounded
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh
 
@@ -42,10 +42,10 @@ class Quadric(Method):
     @dataclass
     class Params:
         placement: Literal["optimal", "endpoints", "midpoint"] = "optimal"
-        boundary_weight: float = 1000.0
-        max_normal_rotation: float = 90.0
+        boundary_weight: float = bounded(1000.0, ge=0)
+        max_normal_rotation: float = bounded(90.0, gt=0, le=180)
         boundary_lock: bool = False
-        texture_weight: float = 1.0
+        texture_weight: float = bounded(1.0, ge=0)
 
     def policy(self) -> Policy:
         p = self.params

@@ -57,6 +57,14 @@ class Case:
     after: Callable | None = None
     #: renders (started first, so that it overlaps the quick cases)
     slow: bool = False
+    #: more environment variables (a plug-in to load, through BENCH_PLUGINS)
+    env: tuple[tuple[str, str], ...] = ()
+    #: seconds before the case counts as hung (it then fails, with "hung" as stderr)
+    timeout: float = 600
+    #: the umask bench runs under (None: the test's own)
+    umask: int | None = None
+    #: standard output is a pipe whose reader has left (as `bench ... | head -1` ends)
+    closed_stdout: bool = False
 
 
 CASES: dict[str, Case] = {}
@@ -600,6 +608,256 @@ for method, target in (("qslim", ("--faces", "1")), ("fast-simplification", ("--
          after=loads_back("out.obj", faces_written(2)))
 
 
+# -- issue 48: a gate no one can slip past, and the last hostile inputs -----------------------
+
+# bench check: duplicate or incomplete records, broken metric plug-ins, pipes, Markdown
+case("check two records of one job", *CHECK, absent=(), files=both(
+    run_folder(GOOD, record(metrics={"d_rms": 25.0, "ssim": 0.9})), baseline_file(BASE)),
+    pattern=r"^run/records/r0\.json and run/records/r1\.json are both records of job "
+    r"'m \| q \| 100 \| flat'; a run folder holds one record per job: remove the stale one$")
+case("baseline two records of one job", *BASELINE, absent=("made.json",),
+     files=run_folder(GOOD, record(metrics={"d_rms": 25.0, "ssim": 0.9})),
+     pattern=r"^run/records/r0\.json and run/records/r1\.json are both records of job")
+case("check a record without a gated metric", *CHECK, expect="ok", code=1, files=both(
+    run_folder(record(metrics={"ssim": 0.9})), baseline_file(BASE)),
+    pattern=r"d_rms +5 +missing metric\n(.|\n)*^bench check: FAILED \(1 regressions")
+case("check a metric plug-in that fails to import", *CHECK, absent=(), files=both(
+    run_folder(GOOD), baseline_file(BASE),
+    text_file("raises_on_import.py", "raise RuntimeError('no')\n")),
+    env=(("BENCH_PLUGINS", "metric:broken=raises_on_import:METRIC"),),
+    pattern=r"^metric 'broken' cannot be loaded: failed to load raises_on_import:METRIC: "
+    r"RuntimeError: no; the gate needs every registered metric's direction")
+case("check --format json into a closed pipe", *CHECK, "--format", "json", expect="ok",
+     files=both(run_folder(GOOD), baseline_file(BASE)), closed_stdout=True,
+     pattern=r"^bench check: passed$")
+MENTIONS = "@octocat see https://evil.example, www.evil.example, a@b.org and #12"
+
+
+def no_mentions(folder: Path, proc) -> None:
+    """Nothing GitHub would turn into a mention, an issue link or an autolink."""
+    assert "octocat" in proc.stdout
+    for pattern in (r"@\w", r"://", r"(?i)www\.", r"#\d"):
+        assert not re.search(pattern, proc.stdout), (pattern, proc.stdout)
+
+
+case("check --format markdown with mentions and links", *CHECK, "--format", "markdown",
+     expect="ok", code=1, files=both(run_folder(record(model=MENTIONS)), baseline_file(BASE)),
+     pattern=r"^\| m \\\| q \\\| 100 \\\| flat \| - \| ok \| .*\*\*missing\*\* \|$",
+     after=no_mentions)
+
+
+# bench history: dates with offsets, one folder under two names, --out
+def history_runs(folder: Path) -> None:
+    """Run ``early`` (d_rms 5) at 01:00 UTC on 6 November and run ``later`` (d_rms 15)
+    at 20:00 on 5 November in UTC-8, which is 04:00 UTC on the 6th: later by three
+    hours, though earlier as text."""
+    for name, created, d_rms in (("early", "2026-11-06T01:00:00Z", 5.0),
+                                 ("later", "2026-11-05T20:00:00-08:00", 15.0)):
+        (folder / name / "records").mkdir(parents=True)
+        r = record(metrics={"d_rms": d_rms, "ssim": 0.9}) | {
+            "created": created, "environment": {"git_commit": name * 5}}
+        (folder / name / "records" / "r.json").write_text(json.dumps(r))
+
+
+def later_fails(folder: Path, proc) -> None:
+    import pandas as pd
+
+    table = pd.read_csv(folder / "hist" / "history.csv")
+    marks = table[table.metric == "d_rms"].set_index("folder").mark.fillna("")
+    assert marks.to_dict() == {"early": "", "later": "worse"}
+
+
+case("history dates with offsets are instants", "history", "early", "later", "--out", "hist",
+     expect="ok", files=history_runs, after=later_fails,
+     pattern=r"^bench history: 2 runs, 1 that bench check would have failed; wrote "
+     r"hist/index\.html$")
+case("history one folder under three names", "history", "early", "sub/../early", "alias",
+     "--out", "hist", expect="ok", files=both(history_runs, lambda d: (d / "sub").mkdir(),
+                                              lambda d: (d / "alias").symlink_to("early")),
+     pattern=r"^bench history: 1 runs, 0 that")
+case("history --out an existing file", "history", "early", "--out", "taken.txt",
+     files=both(history_runs, a_file("taken.txt")),
+     pattern=r"^--out taken\.txt: exists and is not a folder; give a folder")
+case("history --out in a run's images", "history", "early", "later", "--out", "early/images",
+     files=history_runs, absent=("early/images",),
+     pattern=r"^--out early/images: that is inside the run folder early \(its index\.html and "
+     r"images/ are the run's report\)")
+case("history --out in /proc", "history", "early", "--out", "/proc/hist", files=history_runs,
+     pattern=r"^--out /proc/hist: cannot write the history there \(No such file or "
+     r"directory\); give a folder you can write to$")
+
+
+# loaders: sparse accessors, named pipes, faces dropped and split, garbage, overflow
+def tet_gltf(sparse: bool = False, image: str | None = None, glb: bool = False) -> bytes:
+    """The tetrahedron as a hand-built glTF (or GLB): positions, indices and UVs in one
+    buffer; ``sparse``: a sparse accessor moves vertex 3 from (0, 0, 1) to (0, 0, 2);
+    ``image``: a base-colour texture of that URI."""
+    import base64
+    import struct
+
+    blob = (TET_POSITIONS.astype("<f4").tobytes() + TET_FACES.astype("<u2").tobytes()
+            + np.array([[0, 0], [1, 0], [0, 1], [1, 1]], "<f4").tobytes())
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+             {"buffer": 0, "byteOffset": 48, "byteLength": 24},
+             {"buffer": 0, "byteOffset": 72, "byteLength": 32}]
+    position = {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                "min": [0, 0, 0], "max": [1, 1, 1]}
+    if sparse:
+        views += [{"buffer": 0, "byteOffset": len(blob), "byteLength": 2},
+                  {"buffer": 0, "byteOffset": len(blob) + 4, "byteLength": 12}]
+        blob += struct.pack("<H2x3f", 3, 0, 0, 2)
+        position |= {"max": [1, 1, 2], "sparse": {
+            "count": 1, "indices": {"bufferView": 3, "componentType": 5123},
+            "values": {"bufferView": 4}}}
+    primitive = {"attributes": {"POSITION": 0}, "indices": 1}
+    tree = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}], "meshes": [{"primitives": [primitive]}],
+            "buffers": [{"byteLength": len(blob)}], "bufferViews": views,
+            "accessors": [position, {"bufferView": 1, "componentType": 5123, "count": 12,
+                                     "type": "SCALAR"},
+                          {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"}]}
+    if image:
+        primitive["attributes"]["TEXCOORD_0"] = 2
+        primitive["material"] = 0
+        tree |= {"images": [{"uri": image}], "textures": [{"source": 0}], "materials": [
+            {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]}
+    if not glb:
+        tree["buffers"][0]["uri"] = ("data:application/octet-stream;base64,"
+                                     + base64.b64encode(blob).decode())
+        return json.dumps(tree).encode()
+    text = json.dumps(tree).encode()
+    text += b" " * (-len(text) % 4)
+    blob += b"\0" * (-len(blob) % 4)
+    return (struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + 8 + len(blob))
+            + struct.pack("<II", len(text), 0x4E4F534A) + text
+            + struct.pack("<II", len(blob), 0x004E4942) + blob)
+
+
+def moved_vertex(mesh) -> None:
+    expected = TET_POSITIONS.copy()
+    expected[3] = (0, 0, 2)
+    assert sorted(map(tuple, mesh.welded.positions.tolist())) == \
+        sorted(map(tuple, expected.tolist()))
+
+
+for ext in (".gltf", ".glb"):
+    case(f"simplify {ext} sparse accessor", *SIMPLIFY, f"sparse{ext}", "out.obj", "--faces",
+         "4", expect="ok", files=text_file(f"sparse{ext}", tet_gltf(sparse=True,
+                                                                     glb=ext == ".glb")),
+         pattern=r"^sparse: 4 -> 4 faces", after=loads_back("out.obj", moved_vertex))
+
+
+def named_pipe(name: str, maker: Callable | None = None) -> Callable[[Path], None]:
+    """``maker`` (if any), then ``name`` made a named pipe no one writes to: opening it
+    for reading would block for ever."""
+    def make(folder: Path) -> None:
+        if maker:
+            maker(folder)
+        (folder / name).unlink(missing_ok=True)
+        os.mkfifo(folder / name)
+    return make
+
+
+case("simplify OBJ texture is a named pipe", *SIMPLIFY, "in.obj", "out.obj", "--faces", "4",
+     expect="ok", timeout=60, files=named_pipe("tex.png", textured()),
+     pattern=r"^bench: warning: in\.obj: texture image unreadable \(tex\.png is not a regular "
+     r"file\); loading untextured \(UVs kept\)$")
+case("simplify glTF texture is a named pipe", *SIMPLIFY, "in.gltf", "out.obj", "--faces", "4",
+     expect="ok", timeout=60, files=named_pipe("tex.png", text_file(
+         "in.gltf", tet_gltf(image="tex.png"))),
+     pattern=r"^bench: warning: in\.gltf: texture image unreadable \(tex\.png is not a "
+     r"regular file\); loading untextured \(UVs kept\)$")
+case("simplify input is a named pipe", *SIMPLIFY, "pipe.obj", "out.obj", "--faces", "2",
+     timeout=60, files=named_pipe("pipe.obj"),
+     pattern=r"^pipe\.obj: is not a regular file \(a named pipe, device or socket\); give a "
+     r"mesh file$")
+QUAD_AND_2GON = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 0 1\n4 0 1 2 3\n2 0 4\n3 0 1 4\n"
+case("simplify PLY quad and 2-gon", *SIMPLIFY, "mix.ply", "out.obj", "--faces", "3",
+     expect="ok", files=text_file("mix.ply", "ply\nformat ascii 1.0\nelement vertex 5\n"
+                                  "property float x\nproperty float y\nproperty float z\n"
+                                  "element face 3\nproperty list uchar int vertex_indices\n"
+                                  "end_header\n" + QUAD_AND_2GON),
+     pattern=r"^bench: warning: mix\.ply: triangulated polygon faces \(2 faces in the file "
+     r"became 3 triangles\)\nbench: warning: mix\.ply: ignored 1 faces with fewer than 3 "
+     r"corners \(first: face 1 of the file, counting from 0\)$",
+     after=loads_back("out.obj", faces_written(3)))
+case("simplify OFF quad and 2-gon", *SIMPLIFY, "mix.off", "out.obj", "--faces", "3",
+     expect="ok", files=text_file("mix.off", "OFF\n5 3 0\n" + QUAD_AND_2GON),
+     pattern=r"^bench: warning: mix\.off: triangulated 1 faces with more than 3 corners\n"
+     r"bench: warning: mix\.off: ignored 1 faces with fewer than 3 corners \(first on line "
+     r"9\)$", after=loads_back("out.obj", faces_written(3)))
+GARBAGE = b"garbage\x00\xff\xfe junk\n"
+case("simplify garbage OFF", *SIMPLIFY, "junk.off", "out.obj", "--faces", "2",
+     files=text_file("junk.off", GARBAGE),
+     pattern=r"^junk\.off: not an OFF file \(it does not begin with an OFF header\)")
+case("simplify garbage STL", *SIMPLIFY, "junk.stl", "out.obj", "--faces", "2",
+     files=text_file("junk.stl", GARBAGE),
+     pattern=r"^junk\.stl: not an STL file \(not ASCII STL text, and shorter than a binary "
+     r"STL's 84-byte header\)")
+case("simplify garbage STL of 170 bytes", *SIMPLIFY, "junk.stl", "out.obj", "--faces", "2",
+     files=text_file("junk.stl", GARBAGE * 10 + b"\xff" * 10),
+     pattern=r"^junk\.stl: not an STL file \(not ASCII STL text, and 170 bytes where a binary "
+     r"STL of \d+ triangles has \d+\)")
+
+
+def huge_ico(folder: Path) -> None:
+    """icosphere(2) scaled to 1.7e308: an edge's squared length overflows."""
+    ico = icosphere(2)
+    (folder / "huge.obj").write_text(
+        "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in (ico.positions * 1.7e308).tolist())
+        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in ico.faces.tolist()))
+
+
+case("simplify coordinates of 1.7e308 overflow", *SIMPLIFY, "huge.obj", "out.obj", "--faces",
+     "40", files=huge_ico,
+     pattern=r"^out\.obj: \d+ vertices of the result have coordinates that are not finite: "
+     r"coordinates this large \(up to 1\.\d+e\+308\) overflow floating-point arithmetic; "
+     r"scale the mesh down and simplify again$")
+
+# parameters: one rule for every method (cheap methods here; every one below)
+for method, param, message in (
+        ("qslim", "qualitythr=nan", r"'qualitythr' must be a finite number, got nan"),
+        ("qslim", "boundaryweight=-1", r"'boundaryweight' must be >= 0, got -1"),
+        ("fast-simplification", "agg=-1", r"'agg' must be >= 0, got -1"),
+        ("meshopt", "target_error=inf", r"'target_error' must be a finite number, got inf"),
+        ("meshopt-attributes", "normal_weight=nan",
+         r"'normal_weight' must be a finite number, got nan")):
+    case(f"simplify {method} -p {param}", "simplify", "tet.obj", "out.obj", "-m", method,
+         "-p", param, "--faces", "2", files=tet, pattern=rf"^parameter {message}$")
+
+
+# files: the umask's mode
+def mode_644(folder: Path, proc) -> None:
+    for name in ("out.obj", "out.mtl", "out.png"):
+        assert (folder / name).stat().st_mode & 0o777 == 0o644, name
+
+
+case("simplify writes files with the umask's mode", *SIMPLIFY, "in.obj", "out.obj",
+     "--faces", "2", expect="ok", umask=0o022, files=textured(), after=mode_644,
+     pattern=r"wrote out\.obj, out\.png, out\.mtl$")
+
+# errors: an unreadable input, an unwritable output, broken plug-ins
+case("simplify unreadable input", *SIMPLIFY, "mem.obj", "out.obj", "--faces", "2",
+     files=lambda d: (d / "mem.obj").symlink_to("/proc/self/mem"),
+     pattern=r"^mem\.obj: cannot read it \(Input/output error\); check that the file is "
+     r"readable$")
+case("simplify OUT in /proc", *SIMPLIFY, "tet.obj", "/proc/out.obj", "--faces", "2",
+     files=tet, pattern=r"^/proc/out\.obj: cannot write it \(No such file or directory\); "
+     r"give an output in a folder you can write to$")
+case("simplify OUT in a folder no one may write", *SIMPLIFY, "tet.obj", "/sys/out.obj",
+     "--faces", "2", files=tet,
+     pattern=r"^/sys/out\.obj: cannot write it \((Permission denied|Operation not permitted)\)")
+for module, code, message in (
+        ("exits_on_import", "import sys\nsys.exit(0)\n", r"it called sys\.exit\(0\) on import"),
+        ("stops_on_import", "class Stop(BaseException):\n    pass\n\n\nraise Stop('no')\n",
+         r"Stop: no")):
+    case(f"simplify a method plug-in: {module}", *SIMPLIFY[:1], "tet.obj", "out.obj", "-m",
+         "broken", "--faces", "2", files=both(tet, text_file(f"{module}.py", code)),
+         env=(("BENCH_PLUGINS", f"method:broken={module}:Method"),),
+         pattern=rf"^method 'broken' is unavailable: failed to load {module}:Method: "
+         rf"{message}$")
+
+
 # -- running the corpus ----------------------------------------------------------------------
 
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
@@ -613,6 +871,25 @@ def _hashes(folder: Path) -> dict[str, str]:
 def _folder_name(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)[:80] + "-" + \
         hashlib.sha256(name.encode()).hexdigest()[:6]
+
+
+def _bench(c: Case, folder: Path, env: dict) -> subprocess.CompletedProcess:
+    """``bench`` run as the case says; a hung one is killed after ``c.timeout`` seconds
+    and comes back with the return code -9 and "hung" as its standard error."""
+    command = [sys.executable, "-m", "bench", *c.args]
+    proc = subprocess.Popen(command, cwd=folder, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, umask=-1 if c.umask is None
+                            else c.umask)
+    if c.closed_stdout:
+        proc.stdout.close()  # before bench has started: its first write finds no reader
+        proc.stdout = None
+    try:
+        out, err = proc.communicate(timeout=c.timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        return subprocess.CompletedProcess(command, -9, "", f"hung: killed after {c.timeout} s")
+    return subprocess.CompletedProcess(command, proc.returncode, out or "", err)
 
 
 @pytest.fixture(scope="module")
@@ -634,8 +911,7 @@ def outcomes(request, tmp_path_factory):
         if c.files:
             c.files(folder)
         before = _hashes(folder)
-        proc = subprocess.run([sys.executable, "-m", "bench", *c.args], cwd=folder, env=env,
-                              capture_output=True, text=True, timeout=600, check=False)
+        proc = _bench(c, folder, dict(env, **dict(c.env)))
         return name, (proc, before, _hashes(folder), folder)
 
     order = sorted(selected, key=lambda n: not CASES[n].slow)
@@ -694,6 +970,72 @@ def test_force_writes_over_the_input_mesh_and_material_not_its_texture(tmp_path)
         proc.stdout
     assert (tmp_path / "tex.png").read_bytes() == texture
     assert "map_Kd in.png" in (tmp_path / "in.mtl").read_text()
+
+
+def test_force_keeps_the_replaced_files_mode(tmp_path):
+    """OUT = IN with --force writes the new mesh and material with the modes the
+    replaced files had (0640 and 0604 here), not a temporary file's 0600."""
+    textured()(tmp_path)
+    os.chmod(tmp_path / "in.obj", 0o640)
+    os.chmod(tmp_path / "in.mtl", 0o604)
+    proc = subprocess.run([sys.executable, "-m", "bench", "simplify", "in.obj", "in.obj", "-m",
+                           "qslim", "--faces", "2", "--force"], cwd=tmp_path, env=ENV,
+                          capture_output=True, text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "map_Kd in.png" in (tmp_path / "in.mtl").read_text()  # both were written
+    assert (tmp_path / "in.obj").stat().st_mode & 0o777 == 0o640
+    assert (tmp_path / "in.mtl").stat().st_mode & 0o777 == 0o604
+
+
+def _numeric_fields():
+    """(method, field, type, declared range) for every numeric parameter of every
+    method that loads here."""
+    import dataclasses
+    import typing
+
+    from bench.registry import registry
+
+    out = []
+    for entry in registry("method"):
+        if not entry.available:
+            continue
+        cls = entry.load()
+        hints = typing.get_type_hints(cls.Params)
+        for f in dataclasses.fields(cls.Params):
+            if hints[f.name] in (int, float):
+                out.append((entry.name, f.name, hints[f.name], f.metadata.get("range", {})))
+    return out
+
+
+@pytest.mark.parametrize("method,name,kind,bounds", _numeric_fields(),
+                         ids=lambda v: v if isinstance(v, str) else "")
+def test_every_parameter_is_checked_by_the_shared_rule(method, name, kind, bounds):
+    """NaN and infinities are refused for every float parameter, and a value just
+    outside each declared bound for every number, by the one rule parse_params and
+    Method() apply; the default passes it."""
+    from bench.errors import ParamError
+    from bench.method import parse_params
+    from bench.registry import registry
+
+    cls = registry("method").load(method)
+    cls(parse_params(cls.Params, []))  # the defaults pass
+    bad = ["nan", "inf", "-inf"] if kind is float else []
+    step = 1 if kind is int else 1e-9
+    bad += [str(kind(b - step)) for k, b in bounds.items() if k == "ge"]
+    bad += [str(kind(b)) for k, b in bounds.items() if k in ("gt", "lt")]
+    bad += [str(kind(b + step)) for k, b in bounds.items() if k == "le"]
+    for value in bad:
+        with pytest.raises(ParamError, match=rf"^parameter '{name}' must be "):
+            parse_params(cls.Params, [f"{name}={value}"])
+        with pytest.raises(ParamError, match=rf"^parameter '{name}' must be "):
+            cls(**{name: kind(float(value)) if kind is float else int(value)})
+
+
+def test_the_built_in_methods_declare_ranges():
+    """Every numeric parameter of the built-in methods has a declared range (or is a
+    documented exception), so no weight can be negative by mistake."""
+    unbounded = {(m, n) for m, n, _, bounds in _numeric_fields() if not bounds}
+    assert unbounded == set()
 
 
 # -- Ctrl-C in bench run ---------------------------------------------------------------------

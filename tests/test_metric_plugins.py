@@ -75,8 +75,8 @@ def test_a_metric_declares_known_needs_and_always_gets_the_meshes():
     assert Metric("y", "", None, "", lambda o, s, ctx: 0.0).needs == {"meshes"}
     with pytest.raises(ValueError, match=r"needs \['pixels'\].*choose from"):
         Metric("z", "", None, "", lambda o, s, ctx: 0.0, needs={"images", "pixels"})
-    assert set(NEEDS) == {"meshes", "images", "view_meshes", "hausdorff", "silhouette", "parts",
-                          "topology"}
+    assert set(NEEDS) == {"meshes", "images", "view_meshes", "hausdorff", "silhouette",
+                          "topology", "parts"}
 
 
 def test_value_is_a_float_with_per_view_values():

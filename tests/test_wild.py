@@ -351,3 +351,17 @@ def test_no_atlas_cell_bleeds_into_its_neighbour(method):
         assert (uv >= corner_tile[:, None, :2] - 1e-12).all()
         assert (uv <= corner_tile[:, None, 2:] + 1e-12).all()
         assert parts_lost(mesh, out)["materials"] == 0
+
+
+def test_the_wild_suite_leaves_out_missing_assets_and_names_them(tmp_path, monkeypatch):
+    from bench.harness.suites import Suite
+
+    (tmp_path / "wild" / "a").mkdir(parents=True)
+    (tmp_path / "wild" / "a" / "a.obj").write_text("v 0 0 0\n")
+    (tmp_path / "wild" / "a" / "a.png").write_bytes(b"")
+    monkeypatch.setenv("BENCH_ASSETS", str(tmp_path))
+    suite = Suite("s", "d", models=("uv-sphere",), ratios=(0.1,),
+                  assets=("wild/a/a.obj::texture=wild/a/a.png", "wild/b/b.glb"))
+    present, missing = suite.present_assets()
+    assert present == [f"{tmp_path}/wild/a/a.obj::texture={tmp_path}/wild/a/a.png"]
+    assert missing == [f"{tmp_path}/wild/b/b.glb"]

@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 
 from bench.errors import InputError
-from bench.harness.check import make_baseline
-from bench.harness.results import load_records, write_atomic
+from bench.harness.check import load_run, make_baseline
+from bench.io.atomic import write_atomic
 
 
 def add_parser(sub, name: str) -> None:
@@ -20,7 +20,7 @@ def add_parser(sub, name: str) -> None:
 
 
 def run(args) -> int:
-    baseline = make_baseline(load_records(Path(args.run_dir)))
+    baseline = make_baseline(load_run(Path(args.run_dir)))
     if not baseline["entries"]:
         raise InputError(f"{args.run_dir}: no records to make a baseline of")
     for key, entry in baseline["entries"].items():  # a NaN baseline would gate nothing

@@ -14,20 +14,21 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from pathlib import Path
 
-from bench.commands import one_line
+from bench.commands import one_line, stdout_closed
 from bench.harness.check import (
     FAILING_MARKS,
     Row,
     check_tolerance,
     compare,
     load_baseline,
+    load_run,
     make_baseline,
     metric_info,
 )
-from bench.harness.results import load_records
 
 FORMATS = ("text", "markdown", "json", "json-bigger")
 
@@ -51,7 +52,7 @@ def add_parser(sub, name: str) -> None:
 def run(args) -> int:
     tolerance = check_tolerance(args.tolerance)  # before reading anything
     baseline = load_baseline(Path(args.baseline))
-    current = make_baseline(load_records(Path(args.run_dir)))
+    current = make_baseline(load_run(Path(args.run_dir)))
     rows = compare(baseline, current, tolerance)
     failing = [r for r in rows if r.mark in FAILING_MARKS]
     counts = {m: sum(r.mark == m for r in rows) for m in dict.fromkeys(r.mark for r in rows)}
@@ -59,13 +60,17 @@ def run(args) -> int:
     verdict = (f"FAILED ({len(failing)} regressions, tolerance {tolerance:g})" if failing
                else "passed")
     shown = [r for r in rows if args.all or r.mark != "same"]
-    if args.format == "text":
-        _print_text(shown)
-    elif args.format == "markdown":
-        print(markdown(shown, verdict, summary))
-    else:
-        print(json.dumps(benchmark_entries(current, rows, higher=args.format == "json-bigger"),
-                         indent=1))
+    try:
+        if args.format == "text":
+            _print_text(shown)
+        elif args.format == "markdown":
+            print(markdown(shown, verdict, summary))
+        else:
+            print(json.dumps(benchmark_entries(current, rows,
+                                               higher=args.format == "json-bigger"), indent=1))
+        sys.stdout.flush()
+    except BrokenPipeError:  # `| head`: the reader left; the verdict still stands
+        stdout_closed()
     print(f"bench check: {summary}", file=sys.stderr)
     print(f"bench check: {verdict}", file=sys.stderr)
     return 1 if failing else 0
@@ -83,7 +88,8 @@ def _print_text(shown: list[Row]) -> None:
 def markdown(shown: list[Row], verdict: str, summary: str) -> str:
     """The comparison as GitHub-flavoured Markdown: the verdict, the counts, and a table
     of ``shown`` with the change in per cent; failing marks in bold. Every cell from a
-    file is escaped, so a job name cannot end a cell, start markup or hold HTML."""
+    file is escaped, so a job name cannot end a cell, start markup, hold HTML, mention
+    anyone or link anywhere (:func:`_md`)."""
     lines = [f"**bench check: {_md(verdict)}**", "", _md(summary)]
     if shown:
         lines += ["", "| job | metric | baseline | current | change | mark |",
@@ -122,13 +128,22 @@ def _change(r: Row) -> str:
     return ""
 
 
+#: Put where GitHub would otherwise see a mention (``@name``, which notifies that user
+#: or team), an issue reference (``#12``) or an autolinked URL or e-mail address
+#: (``http://``, ``www.``, ``a@b.org``): the zero-width joiner shows as nothing and
+#: breaks the pattern, so a name from a record cannot ping anyone from a PR comment.
+JOINER = "\u200d"
+_AUTOLINKS = re.compile(r"(@|#|:(?=//)|(?<![^\W_])www(?=\.))", re.IGNORECASE)
+
+
 def _md(text) -> str:
     """``text`` safe in a Markdown table cell: one line, HTML and Markdown's own
-    characters escaped."""
+    characters escaped, mentions, issue references and autolinks broken by
+    :data:`JOINER`."""
     text = one_line(text).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
     for ch in "\\|*_`[]#~":
         text = text.replace(ch, "\\" + ch)
-    return text
+    return _AUTOLINKS.sub(lambda m: m.group(0) + JOINER, text)
 
 
 def _fmt(value) -> str:

@@ -6,6 +6,7 @@ OUT/history.csv and the figures under OUT/images/."""
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -43,15 +44,32 @@ def run(args) -> int:
             raise InputError(f"--metrics: no metric {m!r}{suggest(m, known)}; "
                              "bench list metrics shows them")
     out = Path(args.out)
-    if (out / "records").exists() or any(out.resolve() == Path(d).resolve()
-                                         for d in args.run_dirs):
-        raise InputError(f"--out {out}: that is a run folder (its index.html is the run's "
-                         "report); give another folder, e.g. reports/history")
+    check_out(out)
     baseline = load_baseline(Path(args.baseline)) if args.baseline else None
     points = load_history([Path(d) for d in args.run_dirs], tolerance, baseline)
     reference = f"the baseline {Path(args.baseline).name}" if baseline else "the run before it"
-    page = write_history(points, out, metrics, reference)
+    try:
+        page = write_history(points, out, metrics, reference)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write the history there "
+                         f"({exc.strerror or exc}); give a folder you can write to") from None
     failed = sum(p.verdict.startswith("FAILED") for p in points)
     print(f"bench history: {len(points)} runs, {failed} that bench check would have failed; "
           f"wrote {page}", file=sys.stderr)
     return 0
+
+
+def check_out(out: Path) -> None:
+    """InputError unless ``out`` can be the history's folder: not a file, and neither a
+    run folder nor anywhere inside one (its ``images/`` included: the run's report owns
+    them)."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: exists and is not a folder; give a folder for the "
+                         "history, e.g. reports/history")
+    here = out.resolve()
+    for folder in (here, *here.parents):
+        if (folder / "records").is_dir():
+            where = "a run folder" if folder == here else \
+                f"inside the run folder {os.path.relpath(folder)}"
+            raise InputError(f"--out {out}: that is {where} (its index.html and images/ are "
+                             "the run's report); give another folder, e.g. reports/history")

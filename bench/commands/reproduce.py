@@ -102,7 +102,7 @@ def _run_parser() -> argparse.ArgumentParser:
 def _write_csv(out: Path, results: list) -> None:
     import pandas as pd
 
-    from bench.harness.results import write_atomic
+    from bench.io.atomic import write_atomic
 
     rows = []
     for res in results:

@@ -8,8 +8,12 @@ Marks: ``worse``, ``better``, ``same``, ``newly failing`` (baseline ok, now fail
 ``fixed`` (baseline failed, now ok), ``not comparable`` (method or protocol version
 changed, so numbers cannot be compared), ``not finite`` (NaN or infinite on either side:
 no comparison with it can be trusted, and NaN compares false both ways, so it would pass
-for ``same``), ``missing`` (in the baseline, not in the run), ``new`` (in the run only).
-``worse``, ``not finite``, ``newly failing`` and ``missing`` fail the check. The
+for ``same``), ``missing`` (in the baseline, not in the run), ``missing metric`` (a
+gated metric the baseline has for a job that the run's record of it lacks: the same
+method and protocol on the same model define the same metrics, so a record without one
+is damaged or cut down, and passing it would let any regression of that metric
+through), ``new`` (in the run only). ``worse``, ``not finite``, ``newly failing``,
+``missing`` and ``missing metric`` fail the check. The
 tolerance must be finite and at least 0: NaN or infinity would let any change pass, and
 a negative one would fail identical values.
 
@@ -30,7 +34,9 @@ Metrics of the run that the baseline lacks (a newly registered metric) are not c
 make a new baseline to gate them.
 
 Jobs are matched by ``model | method label | target faces | evaluation shading``, never
-by the record's file name. Labels are compared in their canonical form
+by the record's file name, and a run folder holds one record per job: two records of one
+job (an old copy left beside a new one) are an error naming both files
+(:func:`load_run`), never one of them silently winning. Labels are compared in their canonical form
 (:func:`canonical_label`), as ``bench run`` writes them now: a baseline written when
 explicit defaults stayed in the label (``image-driven[interior_views=0]``) or values kept
 their typed form (``qualitythr=0.50``) matches the same job of a current run.
@@ -48,29 +54,30 @@ from bench.errors import InputError
 from bench.harness.jobs import canonical_label
 
 __all__ = ["BASELINE_SCHEMA", "FAILING_MARKS", "baseline_problem", "canonical_label",
-           "check_tolerance", "compare", "load_baseline", "make_baseline", "metric_directions",
-           "metric_info", "record_key"]
+           "check_tolerance", "compare", "load_baseline", "load_run", "make_baseline",
+           "metric_directions", "metric_info", "record_key"]
 
 BASELINE_SCHEMA = 1
-FAILING_MARKS = ("worse", "not finite", "newly failing", "missing", "claim broken")
+FAILING_MARKS = ("worse", "not finite", "newly failing", "missing", "missing metric",
+                 "claim broken")
 
 
 def metric_info(skip_broken: bool = True) -> dict[str, tuple[str, bool | None]]:
     """Registered metric name -> (unit, higher_is_better). A plug-in that cannot be
     loaded is left out (a report then shows its values unitless), unless
-    ``skip_broken`` is false: then its error propagates."""
+    ``skip_broken`` is false: then a plug-in that cannot be imported is an
+    :class:`~bench.errors.UnavailableError`, and one whose backend is missing still
+    gives its unit and direction (they need no backend)."""
     from bench.registry import registry
 
     out = {}
     for entry in registry("metric"):
-        if not entry.available:
-            continue
-        try:
+        if skip_broken:
+            if not entry.available:
+                continue
             metric = entry.load()
-        except Exception:
-            if not skip_broken:
-                raise
-            continue
+        else:
+            metric = entry.definition()
         out[entry.name] = (str(metric.unit), metric.higher_is_better)
     return out
 
@@ -79,8 +86,32 @@ def metric_directions() -> dict[str, bool]:
     """Registered metric name -> higher_is_better, for metrics that have a direction. The
     gate's: a metric plug-in that cannot be loaded is an error here, never a metric
     silently left ungated."""
-    return {name: higher for name, (_, higher) in metric_info(skip_broken=False).items()
-            if higher is not None}
+    from bench.errors import UnavailableError
+
+    try:
+        info = metric_info(skip_broken=False)
+    except UnavailableError as exc:
+        raise UnavailableError(f"{exc}; the gate needs every registered metric's direction: "
+                               "fix the plug-in or uninstall it") from None
+    return {name: higher for name, (_, higher) in info.items() if higher is not None}
+
+
+def load_run(run_dir: Path, skipped: list[str] | None = None) -> list[dict]:
+    """The records of the run folder ``run_dir``
+    (:func:`~bench.harness.results.load_records`, ``skipped`` as there), refused with an
+    :class:`InputError` naming both files when two of them are records of one job."""
+    from bench.harness.results import load_records
+
+    paths = []
+    records = load_records(Path(run_dir), skipped=skipped, paths=paths)
+    seen = {}
+    for path, record in zip(paths, records):
+        key = record_key(record)
+        if key in seen:
+            raise InputError(f"{seen[key]} and {path} are both records of job {_show(key)}; "
+                             "a run folder holds one record per job: remove the stale one")
+        seen[key] = path
+    return records
 
 
 def _key(model: str, label: str, target: int, shading: str) -> str:
@@ -285,8 +316,11 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
             if not _finite(before) or (after is not None and not _finite(after)):
                 rows.append(Row(key, metric, before, after, "not finite"))
                 continue
-            if after is None or metric not in directions:
+            if metric not in directions:  # no longer registered: nothing to judge it by
                 rows.append(Row(key, metric, before, after, "not comparable"))
+                continue
+            if after is None:
+                rows.append(Row(key, metric, before, after, "missing metric"))
                 continue
             delta = (after - before) if directions[metric] else (before - after)  # >0 = better
             slack = tolerance * abs(before) + 1e-12

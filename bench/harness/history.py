@@ -5,7 +5,10 @@ failed marked — the regression graphs of asv, for a folder of CI artifacts.
 A run folder is one point. Its commit is the ``environment.git_commit`` most of its
 records carry (the suite's checkout when the run was made; "unknown" where git was not
 there) and its date the earliest record's ``created``; points are ordered by date, then
-by folder name. A point is checked as ``bench check`` would check that run against the
+by folder name. Dates are compared as instants, with their UTC offsets
+(``…T20:00-08:00`` is after ``…T01:00Z`` of the same day; one without an offset is
+taken as UTC), never as text; a run without a readable date comes first. One folder
+named twice (by two spellings, or a link) is one point. A point is checked as ``bench check`` would check that run against the
 run before it (or, given a baseline file, against that baseline, as CI does with a
 committed one): a metric marked ``worse``, ``not finite`` or ``newly failing`` there is
 drawn as a red cross, and each run's verdict is in the table of runs.
@@ -17,9 +20,11 @@ every string is escaped where it is written.
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 from bench.errors import InputError, RecordWarning
@@ -27,6 +32,7 @@ from bench.harness.check import (
     FAILING_MARKS,
     canonical_label,
     compare,
+    load_run,
     make_baseline,
     metric_info,
     record_key,
@@ -34,9 +40,10 @@ from bench.harness.check import (
 from bench.harness.report import as_dict, figure, html_page, plot_text, pyplot
 from bench.harness.report_images import RunFiles, Shown
 from bench.harness.report_table import esc
-from bench.harness.results import load_records, shading_label, write_atomic
+from bench.harness.results import shading_label
+from bench.io.atomic import write_atomic
 
-__all__ = ["Point", "find_runs", "history_table", "load_history",
+__all__ = ["Point", "find_runs", "history_table", "instant", "load_history",
            "write_history"]
 
 @dataclass
@@ -48,6 +55,7 @@ class Point:
     date: str
     entries: dict  # bench.harness.check.make_baseline's entries of the run
     jobs: dict  # entry key -> (model, method label, target faces, shading)
+    when: datetime | None = None  # ``date`` as an instant (None: no readable date)
     verdict: str = "first run"  # the check against the previous run (or the baseline)
     failing: dict = field(default_factory=dict)  # (job, metric) -> failing mark
     skipped: list = field(default_factory=list)  # bad records left out, with why
@@ -67,7 +75,21 @@ def find_runs(paths: list[Path]) -> list[Path]:
             raise InputError(f"{path}: no run folder (a folder with records/) in it or "
                              "directly under it; give bench run --out folders")
         runs.extend(inner)
-    return list(dict.fromkeys(runs))
+    unique = {}
+    for run in runs:  # by identity: ./a, a/ and a link to a are one run
+        st = os.stat(run)
+        unique.setdefault((st.st_dev, st.st_ino), run)
+    return list(unique.values())
+
+
+def instant(text: str) -> datetime | None:
+    """An ISO 8601 time (a record's ``created``) as an aware datetime, UTC when it has no
+    offset; None when it does not parse."""
+    try:
+        when = datetime.fromisoformat(text)
+    except (TypeError, ValueError):
+        return None
+    return when if when.tzinfo is not None else when.replace(tzinfo=UTC)
 
 
 def load_history(paths: list[Path], tolerance: float = 0.02,
@@ -77,14 +99,17 @@ def load_history(paths: list[Path], tolerance: float = 0.02,
     points = []
     for folder in find_runs(paths):
         skipped = []
-        records = load_records(folder, skipped=skipped)
+        records = load_run(folder, skipped=skipped)
         commits = Counter(_text(as_dict(r.get("environment")).get("git_commit")) or "unknown"
                           for r in records)
-        dates = [_text(r.get("created")) for r in records if _text(r.get("created"))]
+        dates = [(when, text) for text in (_text(r.get("created")) for r in records)
+                 if (when := instant(text)) is not None]
+        when, date = min(dates, default=(None, ""))
         points.append(Point(folder, commits.most_common(1)[0][0] if commits else "unknown",
-                            min(dates, default=""), make_baseline(records)["entries"],
-                            {record_key(r): _job(r) for r in records}, skipped=skipped))
-    points.sort(key=lambda p: (p.date, str(p.folder)))
+                            date, make_baseline(records)["entries"],
+                            {record_key(r): _job(r) for r in records}, when=when,
+                            skipped=skipped))
+    points.sort(key=lambda p: (p.when is not None, p.when or _EPOCH, str(p.folder)))
     for before, point in zip([None, *points], points):
         reference = baseline if baseline is not None else \
             None if before is None else {"entries": before.entries}
@@ -95,6 +120,9 @@ def load_history(paths: list[Path], tolerance: float = 0.02,
         point.failing = {(r.job, r.metric): r.mark for r in failing}
         point.verdict = f"FAILED ({len(failing)})" if failing else "passed"
     return points
+
+
+_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 def history_table(points: list[Point]):

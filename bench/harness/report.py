@@ -51,8 +51,8 @@ from bench.harness.results import (
     load_records,
     records_table,
     shading_label,
-    write_atomic,
 )
+from bench.io.atomic import write_atomic
 
 __all__ = ["ERRORS_SCRIPT", "PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_page",
            "plot_text", "pyplot", "write_report"]

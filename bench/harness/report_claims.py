@@ -19,7 +19,7 @@ from bench.harness.claims import ClaimResult
 from bench.harness.report import figure, html_page, pyplot
 from bench.harness.report_images import RunFiles, run_png
 from bench.harness.report_table import esc
-from bench.harness.results import write_atomic
+from bench.io.atomic import write_atomic
 
 __all__ = ["write_reproduction"]
 

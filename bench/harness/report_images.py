@@ -26,7 +26,7 @@ from urllib.parse import quote
 
 import numpy as np
 
-from bench.harness.results import write_atomic
+from bench.io.atomic import write_atomic
 
 __all__ = ["THUMB_QUALITY", "THUMB_SIZE", "Inline", "Png", "RunFiles", "Shown", "run_file",
            "run_png"]

@@ -14,9 +14,10 @@ Schema (``schema`` = :data:`SCHEMA_VERSION`)::
                                 "address" and "attempts" (Dask)}},
      "created": ISO time}
 
-Records are written atomically (temporary file + rename), so an interrupted run leaves
-only complete records and ``--resume`` can trust what it finds. A job's images are
-written (atomically too) before its record, so a record also means its images exist.
+Records are written atomically (:func:`bench.io.atomic.write_atomic`), so an
+interrupted run leaves only complete records and ``--resume`` can trust what it finds.
+A job's images are written (atomically too) before its record, so a record also means
+its images exist.
 A record of a newer schema is refused; older ones would be migrated by
 :func:`load_record`.
 
@@ -31,18 +32,30 @@ from __future__ import annotations
 
 import json
 import numbers
-import os
-import secrets
 import typing
 from dataclasses import fields
 from pathlib import Path
 
 from bench.errors import InputError
+from bench.io.atomic import write_atomic
 
-__all__ = ["CSV_COLUMNS", "OFF_TARGET", "SCHEMA_VERSION", "STATUSES", "evaluated",
-           "load_record", "load_records", "result_status",
-           "metric_columns", "record_problem", "records_table", "shading_label", "write_atomic",
-           "write_file", "write_record", "write_table"]
+__all__ = [
+    "CSV_COLUMNS",
+    "OFF_TARGET",
+    "SCHEMA_VERSION",
+    "STATUSES",
+    "evaluated",
+    "load_record",
+    "load_records",
+    "metric_columns",
+    "record_problem",
+    "records_table",
+    "result_status",
+    "shading_label",
+    "write_file",
+    "write_record",
+    "write_table",
+]
 
 SCHEMA_VERSION = 1
 
@@ -123,28 +136,6 @@ def write_file(path: Path, data: bytes) -> Path:
     return write_atomic(path, data)
 
 
-def write_atomic(path: Path, data: str | bytes) -> Path:
-    """Write ``data`` (text as UTF-8) to ``path`` through a temporary file in the same
-    folder and a rename, so a reader (the report, ``--resume``, a browser) sees the old
-    file or the new one, never half of one. The temporary file is opened normally (not
-    by ``mkstemp``, which makes it 0600), so the result gets the permissions the umask
-    gives any new file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    try:
-        if isinstance(data, str):
-            with open(tmp, "x", encoding="utf-8") as f:
-                f.write(data)
-        else:
-            with open(tmp, "xb") as f:
-                f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
-
-
 def _jsonable(value):
     import numpy as np
 
@@ -173,13 +164,15 @@ def load_record(path: Path) -> dict:
     return record
 
 
-def load_records(run_dir: Path, skipped: list[str] | None = None) -> list[dict]:
+def load_records(run_dir: Path, skipped: list[str] | None = None,
+                 paths: list[Path] | None = None) -> list[dict]:
     """All records under ``run_dir/records``, sorted by model, method, budget.
 
     A bad record (unreadable, malformed, or a link to a file outside the run folder)
     raises :class:`InputError`, unless ``skipped`` is a list: then its one-line reason is
     appended there and the other records are returned, so that one damaged file does not
-    hide a whole run from its report.
+    hide a whole run from its report. Given a list ``paths``, the file of each record
+    returned is appended to it, in the same order.
     """
     folder = Path(run_dir) / "records"
     if not folder.is_dir():
@@ -191,14 +184,17 @@ def load_records(run_dir: Path, skipped: list[str] | None = None) -> list[dict]:
         try:
             if not path.resolve().is_relative_to(inside):
                 raise InputError(f"{path}: links outside the run folder; not read")
-            records.append(load_record(path))
+            records.append((path, load_record(path)))
         except InputError as exc:
             if skipped is None:
                 raise
             skipped.append(str(exc))
-    return sorted(records, key=lambda r: (r["job"]["model"], r["job"]["label"],
-                                          -r["job"]["target_faces"],
-                                          shading_label(r["job"]["protocol"])))
+    records.sort(key=lambda pr: (pr[1]["job"]["model"], pr[1]["job"]["label"],
+                                 -pr[1]["job"]["target_faces"],
+                                 shading_label(pr[1]["job"]["protocol"])))
+    if paths is not None:
+        paths.extend(p for p, _ in records)
+    return [r for _, r in records]
 
 
 def record_problem(record) -> str | None:

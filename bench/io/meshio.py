@@ -45,13 +45,14 @@ import logging
 import math
 import os
 import re
-import tempfile
+import stat
 from pathlib import Path
 
 import numpy as np
 
 from bench.errors import InputError
 from bench.io.atlas import split_materials
+from bench.io.atomic import write_atomic
 from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
 from bench.mesh import Mesh
 
@@ -105,7 +106,10 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
         raise InputError(f"{source}: unknown mesh format '{ext or '(none)'}'; "
                          f"supported: {', '.join(FORMATS)}")
 
-    scan = {".obj": _scan_obj, ".ply": _scan_ply, ".off": _scan_off}.get(ext, lambda p: {})(path)
+    _check_readable(path, source)
+    _check_signature(path, ext, source)
+    scan = {".obj": _scan_obj, ".ply": _scan_ply, ".off": _scan_off, ".gltf": _scan_gltf,
+            ".glb": _scan_gltf}.get(ext, lambda p: {})(path)
 
     import trimesh
 
@@ -116,11 +120,10 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
                                        resolver=_TextResolver(str(path),
                                                               scan.get("texture_aliases")),
                                        process=False, skip_materials=False)
-        elif scan.get("texture_aliases"):  # a texture line with options
+        else:  # the resolver opens regular files only (a named pipe would block)
             scene = trimesh.load_scene(str(path), process=False, skip_materials=False,
-                                       resolver=_TextResolver(str(path), scan["texture_aliases"]))
-        else:
-            scene = trimesh.load_scene(str(path), process=False, skip_materials=False)
+                                       resolver=_TextResolver(str(path),
+                                                              scan.get("texture_aliases")))
         keys = _material_keys(scene, ext, scan)
         several = len(set(keys.values())) > 1 and any(k is not None for k in keys.values())
         # one material: what trimesh.load(force="mesh") returns, as always
@@ -140,10 +143,12 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
         raise InputError(f"{source}: only {len(loaded.vertices)} of the "
                          f"{scan['ply_vertices']} vertices its header declares could be read; "
                          "the file is corrupt or truncated")
-    if scan.get("ply_faces") is not None and len(loaded.faces) < scan["ply_faces"]:
+    if scan.get("ply_faces") is not None and len(loaded.faces) < _ply_expected(scan):
         raise InputError(f"{source}: only {len(loaded.faces)} of the {scan['ply_faces']} faces "
                          "its header declares could be read; the file is corrupt or truncated")
-    if scan.get("ply_faces") is not None and len(loaded.faces) > scan["ply_faces"]:
+    if "ply_polygons" in scan:  # every face counted: each dropped or split one is named
+        _warn_ply_faces(source, scan)
+    elif scan.get("ply_faces") is not None and len(loaded.faces) > scan["ply_faces"]:
         concave = scan.get("concave", 0)
         warn(f"{source}: triangulated polygon faces ({scan['ply_faces']} faces in the file "
              f"became {len(loaded.faces)} triangles"
@@ -193,7 +198,8 @@ def apply_texture(mesh: Mesh, texture_file: str | os.PathLike) -> Mesh:
         hint = (f"; relative paths are from the current folder: did you mean {beside}?"
                 if not texture_file.is_absolute() and beside.is_file() else "")
         what = "is a directory, not an image" if texture_file.is_dir() else \
-            "no such texture image"
+            "is not a regular file (a named pipe or device), not an image" \
+            if texture_file.exists() else "no such texture image"
         raise InputError(f"{texture_file}: {what} (the texture given for {source}){hint}")
     if mesh.uv is None:
         raise InputError(f"{source}: has no texture coordinates, so the texture "
@@ -279,6 +285,7 @@ def _check_storable(mesh: Mesh, path: Path, source: str) -> None:
     count when some faces would. Ordinary meshes pass."""
     from bench.mesh import face_normals
 
+    _check_finite(mesh, source)
     ext = path.suffix.lower()
     with np.errstate(over="ignore", under="ignore"):
         if _STORAGE[ext] == "32-bit floats":
@@ -307,6 +314,20 @@ def _check_storable(mesh: Mesh, path: Path, source: str) -> None:
              f"{_STORAGE[ext]} {name} is written with")
 
 
+def _check_finite(mesh: Mesh, source: str) -> None:
+    """InputError when a mesh to be written has coordinates that are not finite: a
+    method's arithmetic overflowed on coordinates near the largest double (squares
+    overflow beyond about 1e154), which no output format can help."""
+    finite = np.isfinite(mesh.positions)
+    if finite.all():
+        return
+    big = float(np.abs(mesh.positions[finite]).max(initial=0.0))
+    raise InputError(f"{source}: {int((~finite.all(axis=1)).sum())} vertices of the result "
+                     f"have coordinates that are not finite: coordinates this large (up to "
+                     f"{big:g}) overflow floating-point arithmetic; scale the mesh down and "
+                     "simplify again")
+
+
 def input_files(source: str | os.PathLike | None) -> list[tuple[Path, str]]:
     """The files a mesh file ``source`` is made of, each with its kind: the file itself
     (``"mesh"``), an OBJ's material files (``"material"``) and the images they name
@@ -320,19 +341,29 @@ def input_files(source: str | os.PathLike | None) -> list[tuple[Path, str]]:
     if ext == ".obj":
         files = _scan_obj(path)["files"]
     elif ext == ".gltf":
-        import json
-        from urllib.parse import unquote
-
-        try:
-            tree = json.loads(path.read_bytes())
-        except (ValueError, OSError):
-            tree = {}
-        for key, kind in (("buffers", "buffer"), ("images", "texture")):
-            for item in tree.get(key, []) if isinstance(tree, dict) else []:
-                uri = item.get("uri") if isinstance(item, dict) else None
-                if isinstance(uri, str) and not uri.startswith("data:"):
-                    files.append((path.parent / unquote(uri), kind))
+        files += _gltf_files(path)
     return [(p, kind) for p, kind in files if p.is_file()]
+
+
+def _gltf_files(path: Path) -> list[tuple[Path, str]]:
+    """The files a ``.gltf`` names (buffers and images, by URI), whether they exist or
+    not; none for a file that is not glTF JSON."""
+    import json
+    from urllib.parse import unquote
+
+    if path.suffix.lower() != ".gltf":
+        return []
+    try:
+        tree = json.loads(path.read_bytes())
+    except (ValueError, OSError, RecursionError):
+        tree = {}
+    files = []
+    for key, kind in (("buffers", "buffer"), ("images", "texture")):
+        for item in tree.get(key, []) if isinstance(tree, dict) else []:
+            uri = item.get("uri") if isinstance(item, dict) else None
+            if isinstance(uri, str) and not uri.startswith("data:"):
+                files.append((path.parent / unquote(uri), kind))
+    return files
 
 
 def check_not_inputs(targets: list[Path], inputs: list | None, force: bool) -> None:
@@ -370,7 +401,11 @@ def _commit(files: list[tuple[Path, bytes]], inputs: list | None, force: bool) -
     unique = list(dict.fromkeys(p for p, _ in files))
     check_not_inputs(unique, inputs, force)
     for target, data in files:
-        _write_atomic(target, data)
+        try:
+            write_atomic(target, data)
+        except OSError as exc:
+            raise InputError(f"{target}: cannot write it ({exc.strerror or exc}); give an "
+                             "output in a folder you can write to") from None
     return unique
 
 
@@ -693,22 +728,106 @@ def _check_file_uv(uv: np.ndarray, source: str, obj: Path | None) -> None:
 
 
 class _TextResolver:
-    """trimesh's file resolver for an OBJ read from text: a material file that is not
-    UTF-8 is handed over re-encoded from Latin-1 (trimesh decodes only UTF-8). A texture
-    trimesh asks for by the whole rest of its ``map_Kd`` line, options included, is
-    read from the file name in it (``aliases``, from :func:`_scan_obj`)."""
+    """trimesh's file resolver for a mesh file: a material file that is not UTF-8 is
+    handed over re-encoded from Latin-1 (trimesh decodes only UTF-8). A texture trimesh
+    asks for by the whole rest of its ``map_Kd`` line, options included, is read from
+    the file name in it (``aliases``, from :func:`_scan_obj`). A file that is not a
+    regular file (a named pipe, a device, a directory) is never opened: it is refused
+    as missing (opening a named pipe would block until something writes)."""
 
     def __new__(cls, source: str, aliases: dict | None = None):
         from trimesh.resolvers import FilePathResolver
 
         class Resolver(FilePathResolver):
             def get(self, name: str):
-                data = super().get((aliases or {}).get(name, name))
+                name = (aliases or {}).get(name, name)
+                for candidate in (name.strip(), name.strip().lstrip("/"),
+                                  os.path.split(name)[-1]):
+                    try:
+                        where = self.absolute(candidate)
+                    except ValueError:
+                        continue
+                    if where.exists() and not _regular(where):
+                        raise FileNotFoundError(f"{name}: not a regular file")
+                data = super().get(name)
                 if isinstance(data, bytes) and name.lower().endswith(".mtl"):
                     data = _decode(data)[0].encode("utf-8")
                 return data
 
         return Resolver(source)
+
+
+def _regular(path: Path) -> bool:
+    """Whether ``path`` is a regular file (following links), by ``stat`` alone."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        return False
+
+
+def _not_regular(path: Path) -> str:
+    """What a texture path that is neither a regular file nor a directory is: "not
+    found", or "is not a regular file" (a named pipe, a device), found by ``stat``."""
+    return "is not a regular file" if path.exists() else "not found"
+
+
+def _check_readable(path: Path, source: str) -> None:
+    """InputError unless ``path`` is a regular file that can be read: a named pipe or a
+    device is refused without being opened (reading a pipe blocks), and a file the
+    user may not read, or whose read fails, is named with the reason."""
+    if not _regular(path):
+        raise InputError(f"{source}: is not a regular file (a named pipe, device or "
+                         "socket); give a mesh file")
+    try:
+        with open(path, "rb") as f:
+            f.read(1)
+    except OSError as exc:
+        raise InputError(f"{source}: cannot read it ({exc.strerror or exc}); check that "
+                         "the file is readable") from None
+
+
+def _check_signature(path: Path, ext: str, source: str) -> None:
+    """InputError for an OFF or STL file that is none (garbage, another format), said
+    as such, before trimesh, which would reach for a character-set detector it may not
+    have (and name that module as the problem): an OFF is text beginning with its
+    header, an STL binary (80 bytes, a triangle count, 50 bytes per triangle) or
+    UTF-8 text."""
+    if ext not in (".off", ".stl"):
+        return
+    if ext == ".off":
+        with open(path, "rb") as f:  # the header, after any comments
+            text = f.read(1 << 16).removeprefix(b"\xef\xbb\xbf").decode("latin-1")
+        if not re.match(r"\s*(#[^\n]*\n\s*)*[A-Za-z0-9]*OFF\b", text):
+            raise InputError(f"{source}: not an OFF file (it does not begin with an OFF "
+                             "header); check the file and its extension")
+        return
+    size = os.stat(path).st_size
+    with open(path, "rb") as f:
+        head = f.read(84)
+    count = int.from_bytes(head[80:84], "little") if size >= 84 else None
+    if count is not None and size == 84 + 50 * count:
+        return  # binary
+    try:
+        path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        size = "shorter than a binary STL's 84-byte header" if count is None else \
+            f"{size} bytes where a binary STL of {count} triangles has {84 + 50 * count}"
+        raise InputError(f"{source}: not an STL file (not ASCII STL text, and {size}); "
+                         "the file is corrupt or of another format") from None
+
+
+def _scan_gltf(path: Path) -> dict:
+    """A glTF or GLB with sparse accessors as glTF JSON with them applied
+    (:mod:`bench.io.gltf_sparse`; trimesh ignores them); {} for any other."""
+    from bench.io.gltf_sparse import dense_gltf
+
+    text = dense_gltf(path)
+    scan = {} if text is None else {"text": text, "file_type": "gltf"}
+    odd = [f"{p.name} is not a regular file" for p, kind in _gltf_files(path)
+           if kind == "texture" and p.exists() and not _regular(p)]
+    if odd:  # never opened (_TextResolver); trimesh drops such an image without a word
+        scan["texture_unreadable"] = odd
+    return scan
 
 
 def _texture_key(texture: np.ndarray | None):
@@ -922,14 +1041,6 @@ def _one_mesh_per_group(groups: list):
     return merge
 
 
-def _write_atomic(path: Path, data: bytes) -> Path:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
-    return path
-
-
 def _decode(data: bytes) -> tuple[str, str]:
     """A text file's content and encoding: UTF-8 (ASCII included), else Latin-1, which
     every byte sequence is (exporters on Windows write it)."""
@@ -1043,7 +1154,7 @@ def _scan_obj(path: Path) -> dict:
                         aliases[said] = tex
                 where = mtl.parent / tex
                 problem = None if where.is_file() else \
-                    "is a directory" if where.is_dir() else "not found"
+                    "is a directory" if where.is_dir() else _not_regular(where)
                 if problem is None:
                     found.append((tex, where))
                 elif problem == "not found":
@@ -1208,7 +1319,7 @@ def _scan_off(path: Path) -> dict:
     cuts every polygon into a fan, which covers the wrong area when it is concave).
     Anything this does not parse (another header, a binary or malformed file) is left
     to trimesh as it is."""
-    text, _ = _decode(path.read_bytes())
+    text, encoding = _decode(path.read_bytes())
     lines = text.split("\n")
     entries = [(i, line.split("#", 1)[0].split()) for i, line in enumerate(lines)]
     entries = [(i, tokens) for i, tokens in entries if tokens]
@@ -1226,6 +1337,7 @@ def _scan_off(path: Path) -> dict:
             return {}
         positions = np.array([[float(x) for x in tokens[:3]] for _, tokens in vertices])
         polygons, concave, added = _clip_face_lines(lines, [i for i, _ in faces], positions)
+        short = [i for i, tokens in faces if int(tokens[0]) < 3]  # trimesh leaves them out
     except (ValueError, IndexError):
         return {}
     if concave:
@@ -1233,8 +1345,10 @@ def _scan_off(path: Path) -> dict:
         numbers = header[1:] if header[0] == "OFF" else header
         numbers[1] = str(nf + added)
         lines[count_line] = " ".join((["OFF"] if header[0] == "OFF" else []) + numbers)
-    return {"text": "\n".join(lines) if concave else None, "file_type": "off",
-            "polygons": polygons, "concave": concave}
+    return {"text": "\n".join(lines) if concave or encoding != "utf-8" else None,
+            "file_type": "off",
+            "polygons": polygons, "concave": concave, "short": len(short),
+            "first_short": short[0] + 1 if short else None}
 
 
 def _scan_ply(path: Path) -> dict:
@@ -1269,12 +1383,61 @@ def _scan_ply(path: Path) -> dict:
                 raise InputError(f"{path}: its last element (line {declared} of the data) "
                                  "is incomplete; the file is truncated")
         scan.update(_ply_ear_clip(head.split(b"end_header", 1)[0], path.read_bytes()))
+        scan.update(_ply_face_sizes(path.read_bytes()))
     elif re.search(rb"format\s+binary_(little|big)_endian", header) and b"end_header" in head:
         text = _ply_binary_as_ascii(path.read_bytes())
-        if text is not None:  # it has polygons: clip the concave ones as in ASCII
+        if text is not None:  # not all triangles: clip and count as in ASCII
             ascii_header = text.split(b"end_header", 1)[0]
             scan.update(_ply_ear_clip(ascii_header, text))
+            scan.update(_ply_face_sizes(text))
     return scan
+
+
+def _ply_face_sizes(data: bytes) -> dict:
+    """The corner counts of an ASCII PLY's faces (a vertex and a face element, one index
+    list per face): ``ply_polygons`` faces of more than 3 corners and the
+    ``ply_polygon_triangles`` they become (k - 2 each), ``ply_short`` faces of fewer
+    than 3 (trimesh leaves them out) and the number of the first; {} for any other
+    layout, or a file this cannot read (left to trimesh and the checks after it)."""
+    header, _, body = data.partition(b"end_header")
+    elements = re.findall(rb"element\s+(\S+)\s+(\d+)((?:\s*property[^\n]*)*)", header)
+    if [e[0] for e in elements] != [b"vertex", b"face"] or \
+            len(re.findall(rb"property", elements[1][2])) != 1 or \
+            not re.search(rb"property\s+list", elements[1][2]):
+        return {}
+    nv, nf = int(elements[0][1]), int(elements[1][1])
+    rows = [row for row in body.split(b"\n", 1)[-1].splitlines() if row.strip()]
+    try:
+        sizes = np.array([int(float(row.split()[0])) for row in rows[nv:nv + nf]], np.int64)
+    except (ValueError, IndexError):
+        return {}
+    short = np.flatnonzero(sizes < 3)
+    big = sizes[sizes > 3]
+    return {"ply_polygons": len(big), "ply_polygon_triangles": int((big - 2).sum()),
+            "ply_short": len(short), "ply_first_short": int(short[0]) if len(short) else None}
+
+
+def _ply_expected(scan: dict) -> int:
+    """The triangles a PLY gives when none is lost: its declared faces, less those of
+    fewer than 3 corners, with each polygon counted as its k - 2 triangles (when
+    :func:`_ply_face_sizes` could count them)."""
+    return (scan["ply_faces"] - scan.get("ply_short", 0) - scan.get("ply_polygons", 0)
+            + scan.get("ply_polygon_triangles", 0))
+
+
+def _warn_ply_faces(source: str, scan: dict) -> None:
+    """The warnings about a PLY's faces, each kind counted on its own: polygons
+    triangulated (the faces of 3 or more corners and the triangles they became; the
+    concave ones by ear clipping), faces of 1 or 2 corners left out."""
+    if scan["ply_polygons"]:
+        concave = scan.get("concave", 0)
+        kept = scan["ply_faces"] - scan["ply_short"]
+        warn(f"{source}: triangulated polygon faces ({kept} faces in the file became "
+             f"{_ply_expected(scan)} triangles"
+             + (f"; {concave} concave, by ear clipping)" if concave else ")"))
+    if scan["ply_short"]:
+        warn(f"{source}: ignored {scan['ply_short']} faces with fewer than 3 corners (first: "
+             f"face {scan['ply_first_short']} of the file, counting from 0)")
 
 
 #: PLY scalar types and their NumPy codes.
@@ -1286,8 +1449,9 @@ _PLY_TYPES = {b"char": "i1", b"int8": "i1", b"uchar": "u1", b"uint8": "u1", b"sh
 
 def _ply_binary_as_ascii(data: bytes) -> bytes | None:
     """A binary PLY of a vertex and a face element (scalar vertex properties, one index
-    list per face) that has a face of more than 3 corners, as the same PLY in ASCII, so
-    :func:`_ply_ear_clip` can clip its concave polygons; None for a triangle mesh, any
+    list per face) that has a face of other than 3 corners, as the same PLY in ASCII, so
+    :func:`_ply_ear_clip` can clip its concave polygons and :func:`_ply_face_sizes`
+    count every face; None for a triangle mesh, any
     other layout or a file too short for its header (all left to trimesh)."""
     header, sep, body = data.partition(b"end_header")
     if not sep:
@@ -1327,7 +1491,7 @@ def _ply_binary_as_ascii(data: bytes) -> bytes | None:
             return None
         faces.append(np.frombuffer(body, itype, n, at))
         at += n * itype.itemsize
-    if all(len(f) <= 3 for f in faces):
+    if all(len(f) == 3 for f in faces):
         return None
     lines = [re.sub(rb"format\s+binary_\w+", b"format ascii", header).rstrip() +
              b"\nend_header"]
