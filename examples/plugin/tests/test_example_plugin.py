@@ -74,3 +74,10 @@ def test_registered_through_its_entry_point(kind, name):
     entry = registry(kind).entry(name)
     assert entry.available, entry.problem
     assert entry.load() is (VertexClustering if kind == "method" else AREA_CHANGE)
+
+
+def test_a_grid_of_one_cell_is_refused_by_the_declared_range():
+    from bench.errors import ParamError
+
+    with pytest.raises(ParamError, match="max_cells"):
+        VertexClustering(max_cells=1)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult
+from bench.method import Method, SimplifyResult, bounded
 
 __all__ = ["VertexClustering", "cluster"]
 
@@ -61,7 +61,7 @@ class VertexClustering(Method):
     @dataclass
     class Params:
         #: the finest grid tried, in cells along the longest side
-        max_cells: int = 1024
+        max_cells: int = bounded(1024, ge=2)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         lo, hi = 1, self.params.max_cells
