@@ -23,7 +23,7 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["Mesh", "Welded", "face_areas", "face_normals"]
+__all__ = ["Mesh", "Welded", "compact", "face_areas", "face_normals"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,6 +198,36 @@ class Mesh:
         """A copy with some fields changed (derived topology is recomputed)."""
         return replace(self, **changes)
 
+    def keep_faces(self, faces) -> Mesh:
+        """The mesh made of ``faces`` alone, over only the vertices they use.
+
+        What a simplification method returns once it knows which triangles survive:
+        ``faces`` index this mesh's render vertices (a subset of its faces, or new
+        triangles over its vertices); the result keeps the used vertices in their order,
+        each with its UV, normal and colour, renumbers the faces onto them (see
+        :func:`compact`), and keeps the texture, name and metadata.
+
+        Parameters
+        ----------
+        faces : array_like of shape (k, 3) int
+            Indices into this mesh's vertices.
+
+        Returns
+        -------
+        Mesh
+
+        Examples
+        --------
+        >>> quad = Mesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
+        >>> half = quad.keep_faces(quad.faces[1:])
+        >>> half.faces.tolist(), half.positions[:, :2].tolist()
+        ([[0, 1, 2]], [[0.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+        """
+        used, renumbered = compact(faces, self.n_vertices)
+        attributes = {a: getattr(self, a)[used] for a in ("uv", "normals", "colors")
+                      if getattr(self, a) is not None}
+        return self.replace(positions=self.positions[used], faces=renumbered, **attributes)
+
     def summary(self) -> dict:
         """Counts that describe the mesh, as shown by ``bench list models``."""
         w = self.welded
@@ -219,6 +249,38 @@ class Mesh:
 
 
 # -- free functions ---------------------------------------------------------------------
+def compact(faces, n_vertices: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices ``faces`` use and ``faces`` renumbered onto them.
+
+    Parameters
+    ----------
+    faces : array_like of shape (k, 3) int
+        Indices into some vertex arrays.
+    n_vertices : int, optional
+        How many vertices there are; an index outside ``[0, n_vertices)`` is then a
+        ``ValueError`` naming it.
+
+    Returns
+    -------
+    used : ndarray of shape (u,) int64
+        The indices ``faces`` use, ascending: index any per-vertex array with it.
+    faces : ndarray of shape (k, 3) int32
+        ``faces`` with each index replaced by its position in ``used``.
+    """
+    faces = np.asarray(faces)
+    if faces.size == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 3), np.int32)
+    if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+        raise ValueError(f"faces must be (k, 3) integers, got {faces.shape} {faces.dtype}")
+    if n_vertices is not None:
+        bad = faces[(faces < 0) | (faces >= n_vertices)]
+        if bad.size:
+            raise ValueError(f"face index {int(bad[0])} is outside the mesh's "
+                             f"{n_vertices} vertices")
+    used, renumbered = np.unique(faces.reshape(-1), return_inverse=True)
+    return used.astype(np.int64), renumbered.reshape(-1, 3).astype(np.int32)
+
+
 
 def face_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Unit normals of triangles, ndarray of shape (m, 3); zero rows for zero area.

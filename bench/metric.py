@@ -12,6 +12,14 @@ needs (:data:`NEEDS`): the protocol (:func:`metrics.protocol.evaluate`) computes
 shared input once per evaluation — renders once, samples the Hausdorff distance once —
 and hands every registered metric the inputs it asked for in ``ctx``.
 
+Build one with keywords, so that the direction reads as what it is::
+
+    AREA_RATIO = Metric(name="area_ratio", unit="ratio", higher_is_better=None,
+                        summary="simplified surface area / original", compute=area_ratio)
+
+(The built-ins' positional form, ``Metric(name, unit, higher_is_better, summary,
+compute)``, still works.)
+
 ``compute(original, simplified, ctx)`` returns a number, or a :class:`Value` (a float
 that also carries per-view values, recorded under the record's ``per_view``). ``None`` or
 NaN means "undefined for this model" (e.g. ``exterior_share`` on a model that does not

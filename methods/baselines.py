@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import InputError
-from bench.mesh import Mesh
+from bench.mesh import Mesh, compact
 from bench.method import Method, SimplifyResult, bounded
 
 __all__ = ["FastSimplification", "QSlim", "QSlimTexture", "fewest_faces"]
@@ -242,7 +242,5 @@ def _write_wedge_obj(mesh: Mesh, folder: Path) -> str:
 
 
 def _drop_unreferenced(points: np.ndarray, tris: np.ndarray):
-    used = np.zeros(len(points), bool)
-    used[tris.reshape(-1)] = True
-    remap = np.cumsum(used) - 1
-    return points[used], remap[tris].astype(np.int32)
+    used, tris = compact(tris)
+    return points[used], tris

@@ -55,7 +55,7 @@ from typing import ClassVar
 import numpy as np
 
 from bench.errors import MeshWarning, MethodError, ParamError
-from bench.mesh import Mesh
+from bench.mesh import Mesh, compact
 from bench.method import Method, SimplifyResult, bounded, target_tolerance
 
 __all__ = [
@@ -767,10 +767,7 @@ def protected_vertices(mesh: Mesh, protect: str = "orientation") -> np.ndarray:
 def _compact(mesh: Mesh, lib: LibraryResult, op: str, attributes) -> Mesh:
     """The kept triangles over only the vertices they use, attributes carried along
     (for ``update``, the library's updated positions, UVs and normals)."""
-    kept = lib.kept
-    used = np.zeros(mesh.n_vertices, bool)
-    used[kept.reshape(-1)] = True
-    remap = np.cumsum(used) - 1
+    used, faces = compact(lib.kept, mesh.n_vertices)
     pick = {attr: getattr(mesh, attr)[used] for attr in ("uv", "normals", "colors")
             if getattr(mesh, attr) is not None}
     positions = mesh.positions[used]
@@ -783,7 +780,7 @@ def _compact(mesh: Mesh, lib: LibraryResult, op: str, attributes) -> Mesh:
             length = np.linalg.norm(updated[:, :3], axis=1, keepdims=True)
             pick["normals"] = np.where(length > 0, updated[:, :3] / np.where(length > 0, length, 1),
                                        mesh.normals[used])
-    return mesh.replace(positions=positions, faces=remap[kept].astype(np.int32), **pick)
+    return mesh.replace(positions=positions, faces=faces, **pick)
 
 
 def _stop_reason(call, reached: int, target: int, target_error: float, error: float,

@@ -8,7 +8,10 @@ cd "$(dirname "$0")/.."
 
 # Headless OpenGL through EGL on Mesa's llvmpipe (no GPU, no display needed), plus venv,
 # plus Node.js and npm, which run meshoptimizer and gltfpack (the meshopt* and gltfpack rows).
-PKGS="libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgbm1 python3-venv nodejs npm"
+PKGS="libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgbm1 python3-venv"
+# Debian's nodejs and npm, unless node and npm are there already: NodeSource's nodejs
+# bundles npm, and Debian's npm package cannot be installed beside it.
+command -v node >/dev/null && command -v npm >/dev/null || PKGS="$PKGS nodejs npm"
 missing=$(dpkg-query -W -f='${db:Status-Abbrev} ${Package}\n' $PKGS 2>/dev/null | awk '$1!="ii"{print $2}'; \
           for p in $PKGS; do dpkg-query -W "$p" >/dev/null 2>&1 || echo "$p"; done)
 if [ -n "$(echo $missing)" ]; then

@@ -1,4 +1,4 @@
-"""The layering rule (README, "Layering"), checked two ways.
+"""The layering rule (docs/architecture.md, "Layout and layering"), checked two ways.
 
 * statically, by import-linter's contracts in pyproject.toml (``lint-imports``): the
   core imports neither methods nor metrics, methods import the core and the metric

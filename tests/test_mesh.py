@@ -258,3 +258,51 @@ def test_bad_shapes_and_dtypes_raise_value_error(kwargs, match):
     args = {"positions": TET_POSITIONS, "faces": TET_FACES} | kwargs
     with pytest.raises(ValueError, match=match):
         Mesh(**args)
+
+
+# -- a mesh from kept faces (bench.mesh.compact, Mesh.keep_faces) -------------------------
+def test_compact_renumbers_onto_the_used_vertices_in_order():
+    from bench.mesh import compact
+
+    used, faces = compact(np.array([[4, 2, 7], [7, 2, 9]]))
+    assert used.tolist() == [2, 4, 7, 9]
+    assert faces.tolist() == [[1, 0, 2], [2, 0, 3]]
+    assert faces.dtype == np.int32
+    empty_used, empty_faces = compact(np.zeros((0, 3), np.int64))
+    assert empty_used.shape == (0,) and empty_faces.shape == (0, 3)
+
+
+def test_compact_names_an_index_outside_the_vertices():
+    from bench.mesh import compact
+
+    with pytest.raises(ValueError, match="face index 5 is outside the mesh's 5 vertices"):
+        compact(np.array([[0, 1, 5]]), 5)
+
+
+def test_keep_faces_carries_every_attribute_of_the_used_vertices():
+    positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [9, 9, 9]], float)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]])
+    colors = np.arange(20, dtype=np.uint8).reshape(5, 4)
+    texture = np.zeros((2, 2, 3), np.uint8)
+    mesh = Mesh(positions, [[0, 1, 2], [0, 2, 3], [1, 4, 2]], uv=uv, colors=colors,
+                texture=texture, name="quad", metadata={"k": 1})
+    kept = mesh.keep_faces(mesh.faces[[1]])
+    assert kept.faces.tolist() == [[0, 1, 2]]
+    assert kept.positions.tolist() == [[0, 0, 0], [1, 1, 0], [0, 1, 0]]
+    assert kept.uv.tolist() == [[0, 0], [1, 1], [0, 1]]
+    assert kept.colors.tolist() == colors[[0, 2, 3]].tolist()
+    assert kept.texture is texture and kept.name == "quad" and kept.metadata == {"k": 1}
+    assert kept.normals is None
+
+
+def test_keep_faces_matches_the_hand_written_compaction_it_replaces():
+    # the mask-and-cumsum form methods/baselines.py and methods/meshopt.py used
+    rng = np.random.default_rng(7)
+    faces = rng.integers(0, 50, size=(40, 3))
+    mask = np.zeros(50, bool)
+    mask[faces.reshape(-1)] = True
+    remap = np.cumsum(mask) - 1
+    mesh = Mesh(rng.normal(size=(50, 3)), rng.integers(0, 50, size=(60, 3)))
+    kept = mesh.keep_faces(faces)
+    assert np.array_equal(kept.positions, mesh.positions[mask])
+    assert np.array_equal(kept.faces, remap[faces].astype(np.int32))

@@ -319,3 +319,17 @@ def test_in_bench_check_with_its_direction(run, tmp_path):
     failing = _bench("check", str(out), "--baseline", str(base), cwd=root, check=1)
     assert any("luma_gap" in line and "RuntimeError: broke" in line and
                line.endswith("newly failing") for line in failing.stdout.splitlines())
+
+
+def test_a_metric_is_built_by_keyword_as_the_docs_show():
+    from bench.metric import Metric
+
+    def count(original, simplified, ctx):
+        return simplified.n_faces
+
+    by_keyword = Metric(name="n", unit="faces", higher_is_better=None, summary="faces",
+                        compute=count, needs={"topology"})
+    positional = Metric("n", "faces", None, "faces", count, needs={"topology"})
+    assert by_keyword == positional
+    assert by_keyword.needs == frozenset({"topology", "meshes"})
+    assert by_keyword.direction == "descriptive"

@@ -56,7 +56,7 @@ def add_parser(sub, name: str) -> None:
                    "--scheduler's workers); results do not depend on it")
     p.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="what runs the jobs: a pool of processes here (local, the default) "
-                   "or a Dask cluster (dask; README, 'Running on a cluster')")
+                   "or a Dask cluster (dask; docs/cluster.md)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler, e.g. tcp://HOST:8786 (with --executor "
                    "dask; without it a LocalCluster of --jobs workers is started)")

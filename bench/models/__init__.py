@@ -206,7 +206,7 @@ def _load_registered(name: str) -> Mesh:
     return registry("model").load(name).load()
 
 
-#: What a model spec's options are written like (README, "Models").
+#: What a model spec's options are written like (docs/models.md).
 SPEC_SYNTAX = "MODEL::texture=IMAGE"
 
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh import Mesh
+from bench.mesh import Mesh, compact
 
 __all__ = ["make_interior", "geodesic_sphere", "bump_height", "OPENINGS", "INNER_RADIUS",
            "INNER_AMPLITUDE", "EXTERIOR_RADIUS"]
@@ -188,8 +188,7 @@ def _shell_with_openings(frequency: int) -> tuple[np.ndarray, np.ndarray]:
 
     # Move each rim vertex along the great circle through the opening's axis onto the rim.
     # Each rim vertex belongs to exactly one opening (the openings are far apart).
-    used, faces = np.unique(faces, return_inverse=True)
-    faces = faces.reshape(-1, 3).astype(np.int32)
+    used, faces = compact(faces)
     positions = positions[used]
     rim = _boundary_vertices(faces)
     p = positions[rim]

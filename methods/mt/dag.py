@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from bench.mesh import Mesh
+from bench.mesh import Mesh, compact
 
 __all__ = ["Cut", "MultiTriangulation", "build_mt", "from_log"]
 
@@ -209,8 +209,8 @@ class Cut:
     def mesh(self) -> Mesh:
         """The cut as a :class:`Mesh` (render vertices = the MT vertices it uses)."""
         tris = self.mt.triangles[self.triangles()]
-        used, faces = np.unique(tris.reshape(-1), return_inverse=True)
-        return Mesh(self.mt.positions[used], faces.reshape(-1, 3).astype(np.int32),
+        used, faces = compact(tris)
+        return Mesh(self.mt.positions[used], faces,
                     uv=None if self.mt.uv is None else self.mt.uv[used],
                     texture=self.mt.texture if self.mt.uv is not None else None,
                     name=self.mt.name)
