@@ -210,8 +210,10 @@ def test_check_keys_tell_shadings_and_specular_apart():
 
 
 def test_undefined_exterior_share_is_never_a_regression():
-    """Undefined is absent from the record (metrics.protocol leaves it out); a NaN there
-    is not "undefined" but damage, and fails the gate."""
+    """Undefined is absent from the record (metrics.protocol leaves it out): absent on
+    both sides it is no row; defined in the baseline and absent from the run's record of
+    the same job it is a missing metric (the same model defines the same metrics, so the
+    record is damaged), and a NaN there is not "undefined" but damage: both fail."""
     defined = make_baseline([_record("q", FLAT, 5.0, exterior_share=0.9)])
     undefined = make_baseline([_record("q", FLAT, 5.0)])
     assert "exterior_share" not in undefined["entries"]["m | q | 100 | flat"]["metrics"]
@@ -219,7 +221,7 @@ def test_undefined_exterior_share_is_never_a_regression():
     marks = {r.metric: r.mark for r in compare(undefined, undefined)}
     assert "exterior_share" not in marks
     marks = {r.metric: r.mark for r in compare(defined, undefined)}
-    assert marks["exterior_share"] == "not comparable"
+    assert marks["exterior_share"] == "missing metric"
     nan = make_baseline([_record("q", FLAT, 5.0, exterior_share=math.nan)])
     assert {r.metric: r.mark for r in compare(defined, nan)}["exterior_share"] == "not finite"
     lower = make_baseline([_record("q", FLAT, 5.0, exterior_share=0.5)])
