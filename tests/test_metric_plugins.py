@@ -269,8 +269,11 @@ def test_in_results_csv_after_the_built_in_columns(run):
     root, record = run
     table = pd.read_csv(root / "out" / "results.csv")
     # the built-in columns keep their order; the other registered metrics follow by name
-    assert list(table.columns) == CSV_COLUMNS + ["far_share", "luma_gap", "non_manifold_edges",
-                                                 "render_vertices", "welded_vertices"]
+    # ... and last the intervals over views of those with per-view values
+    assert list(table.columns) == CSV_COLUMNS + [
+        "components_lost", "components_lost_area", "far_share", "luma_gap", "materials_lost",
+        "non_manifold_edges", "render_vertices", "welded_vertices", "d_rms_lo", "d_rms_hi",
+        "flip_lo", "flip_hi", "ssim_lo", "ssim_hi", "luma_gap_lo", "luma_gap_hi"]
     assert table.luma_gap[0] == pytest.approx(record["metrics"]["luma_gap"], rel=1e-5)
 
 
