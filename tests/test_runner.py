@@ -115,10 +115,12 @@ def test_record_contents(run):
 def test_results_csv_and_report(run):
     root, _ = run
     table = pd.read_csv(root / "out" / "results.csv")
-    # the built-in columns, then the registered metrics they do not show, by name
+    # the built-in columns, then the registered metrics they do not show, by name, then
+    # the intervals over views
     assert list(table.columns) == CSV_COLUMNS + [
         "components_lost", "components_lost_area", "materials_lost", "non_manifold_edges",
-        "render_vertices", "welded_vertices"]
+        "render_vertices", "welded_vertices", "d_rms_lo", "d_rms_hi", "flip_lo", "flip_hi",
+        "ssim_lo", "ssim_hi"]
     assert len(table) == 8
     assert sorted(table.status.unique()) == ["failed", "ok"]
     html = (root / "out" / "index.html").read_text()

@@ -16,7 +16,6 @@ from hypothesis import strategies as st
 
 from bench.io.atlas import Part, face_materials, pack_materials
 from bench.mesh import Mesh
-from bench.registry import registry
 from methods.engine import Policy, simplify_mesh
 from methods.engine.state import WEDGE_TARGETS_CAP
 from metrics.parts import parts_lost
@@ -89,25 +88,6 @@ def test_a_wide_pole_simplifies_to_any_budget():
     for target in (60, 10, 1):
         result = simplify_mesh(fan(100), target, Policy(texture_weight=1.0))
         assert result.mesh.n_faces <= target or result.stop_reason
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("method", ENGINE_METHODS)
-def test_every_engine_method_runs_through_a_200_segment_uv_sphere(method):
-    mesh = quiet_load("uv-sphere")
-    for target in (2360, 708, 100):
-        result = registry("method").load(method)().simplify(mesh, target, None)
-        assert result.mesh.n_faces <= 1.1 * target, result.stop_reason
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("method", ENGINE_METHODS)
-def test_every_engine_method_runs_through_the_capsule(method):
-    mesh = quiet_load(asset("capsule/capsule.obj"))
-    for ratio in (0.1, 0.03):
-        target = round(mesh.n_faces * ratio)
-        result = registry("method").load(method)().simplify(mesh, target, None)
-        assert result.mesh.n_faces <= 1.1 * target, result.stop_reason
 
 
 # -- parts and materials -----------------------------------------------------------------
@@ -330,27 +310,6 @@ def test_a_run_marks_a_result_that_stops_short_off_target(tmp_path):
     assert record["metrics"]["faces"] == 4
     assert "no valid collapse remains" in record["stop_reason"]
     assert "ended more than 10 % from their target" in proc.stderr
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("method", ENGINE_METHODS)
-def test_no_atlas_cell_bleeds_into_its_neighbour(method):
-    """On the vehicle (a painted body, tyres and hubcaps in one atlas) every face of the
-    result keeps its corners in one material's tile, each UV inside its tile, and no
-    material is lost."""
-    from bench.io.atlas import materials_of, mixed_faces, tiles_of
-
-    mesh = quiet_load("vehicle")
-    tiles = tiles_of(materials_of(mesh))
-    for ratio in (0.1, 0.03):
-        out = registry("method").load(method)().simplify(
-            mesh, round(mesh.n_faces * ratio), None).mesh
-        assert not mixed_faces(out).any()
-        corner_tile = tiles[face_materials(out)]                     # (k, 4) per face
-        uv = out.uv[out.faces]                                        # (k, 3, 2)
-        assert (uv >= corner_tile[:, None, :2] - 1e-12).all()
-        assert (uv <= corner_tile[:, None, 2:] + 1e-12).all()
-        assert parts_lost(mesh, out)["materials"] == 0
 
 
 def test_the_wild_suite_leaves_out_missing_assets_and_names_them(tmp_path, monkeypatch):
