@@ -458,10 +458,20 @@ def test_an_empty_result_is_a_clear_failure():
 
 @pytest.mark.parametrize("name", [*VARIANTS, "gltfpack"])
 def test_deterministic(name):
+    """The same result twice, and with one thread or two for the job (the library runs
+    in one Node process, whatever the job's thread count)."""
+    from bench.harness.jobs import use_threads
+
     cls = Gltfpack if name == "gltfpack" else VARIANTS[name]
     mesh = CRATE.load()
-    a = run_method(cls(), mesh, 400)
-    b = run_method(cls(), mesh, 400)
+    before = use_threads(None)
+    try:
+        use_threads(1)
+        a = run_method(cls(), mesh, 400)
+        use_threads(2)
+        b = run_method(cls(), mesh, 400)
+    finally:
+        use_threads(before)
     np.testing.assert_array_equal(a.mesh.faces, b.mesh.faces)
     np.testing.assert_array_equal(a.mesh.positions, b.mesh.positions)
     np.testing.assert_array_equal(a.mesh.uv, b.mesh.uv)
