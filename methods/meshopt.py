@@ -414,13 +414,18 @@ class MeshoptAttributes(_Node):
     Params = MeshoptAttributesParams
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
-        p = _checked(self.params)
-        attributes, weights, stats = vertex_attributes(mesh, p)
-        result = simplify_index_buffer(mesh, target_faces, "attributes", _error_bound(p),
-                                       flags=_flags(p), absolute=p.error_absolute,
-                                       attributes=attributes, weights=weights)
-        result.stats.update(stats)
-        return result
+        return _with_attributes("attributes", _checked(self.params), mesh, target_faces)
+
+
+def _with_attributes(call: str, p, mesh: Mesh, target_faces: int) -> SimplifyResult:
+    """``call`` ("attributes" or "update") with the UV and normal attributes and weights
+    of :func:`vertex_attributes`, their statistics added to the result's."""
+    attributes, weights, stats = vertex_attributes(mesh, p)
+    result = simplify_index_buffer(mesh, target_faces, call, _error_bound(p),
+                                   flags=_flags(p), absolute=p.error_absolute,
+                                   attributes=attributes, weights=weights)
+    result.stats.update(stats)
+    return result
 
 
 class MeshoptUpdate(_Node):
@@ -446,13 +451,7 @@ class MeshoptUpdate(_Node):
     Params = MeshoptAttributesParams
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
-        p = _checked(self.params)
-        attributes, weights, stats = vertex_attributes(mesh, p)
-        result = simplify_index_buffer(mesh, target_faces, "update", _error_bound(p),
-                                       flags=_flags(p), absolute=p.error_absolute,
-                                       attributes=attributes, weights=weights)
-        result.stats.update(stats)
-        return result
+        return _with_attributes("update", _checked(self.params), mesh, target_faces)
 
 
 class MeshoptPermissive(_Node):
