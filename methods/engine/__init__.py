@@ -72,10 +72,11 @@ Topology rules (each rejection is counted and reported):
 - *last faces of a part*: with ``keep_parts`` (the default) no collapse removes the
   last faces of a connected component or of a material (:mod:`methods.engine.parts`).
 
-The optimal placement is guarded: the quadric's minimiser must lie within the bounding
-box of the edge's one-ring enlarged by a quarter of the edge's length, else the best of
-the endpoints and the midpoint is taken (a long edge on a multi-part asset otherwise
-threw a vertex far outside its part).
+The placements are guarded (``cost._near_ring``): the quadric's minimiser must lie
+within the bounding box of the edge's one-ring enlarged by a quarter of the edge's
+length, else the best of the endpoints and the midpoint is taken; Lindstrom & Turk's
+point within one edge length of that box, else the guarded quadric point (on a
+multi-part asset both otherwise threw vertices far outside their part).
 
 Wedges (render vertices) are carried along: the two faces removed by a collapse pair
 each wedge of the removed vertex with the wedge of the kept vertex on the same side of
