@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from bench.harness.jobs import Job
+from bench.harness.results import evaluated
 from bench.harness.runner import execute, remaining
 from bench.io.meshio import save_mesh
 from conftest import icosphere
@@ -75,7 +76,7 @@ def test_a_killed_or_out_of_memory_job_fails_alone(ico, tmp_path):
     assert [job.key for job in todo] == [killed.key, starved.key]
     execute(todo, out, workers=1, timeout=300, progress=False)
     again = _records(out)
-    assert again[killed.key]["status"] == "ok", again[killed.key]["error"]
+    assert evaluated(again[killed.key]), again[killed.key]["error"]
     assert again[starved.key]["status"] == "failed"
     assert {job.key: (out / "records" / f"{job.key}.json").stat().st_mtime_ns
             for job in fine} == kept
@@ -107,7 +108,7 @@ def test_a_run_killed_with_sigkill_is_resumed(ico, tmp_path):
     state = Path(f"/proc/{sleeper}/stat")
     assert not state.exists() or state.read_text().rsplit(")", 1)[1].split()[0] == "Z"
     before = _records(out)
-    assert before and all(r["status"] == "ok" for r in before.values())
+    assert before and all(evaluated(r) for r in before.values())
     assert not list((out / "records").glob("*.tmp*"))  # no half-written record
     mtimes = {p.name: p.stat().st_mtime_ns for p in (out / "records").iterdir()}
 
@@ -115,6 +116,6 @@ def test_a_run_killed_with_sigkill_is_resumed(ico, tmp_path):
                           check=False)
     assert done.returncode == 0, done.stderr
     after = _records(out)
-    assert len(after) == 4 and all(r["status"] == "ok" for r in after.values())
+    assert len(after) == 4 and all(evaluated(r) for r in after.values())
     for name, mtime in mtimes.items():
         assert (out / "records" / name).stat().st_mtime_ns == mtime

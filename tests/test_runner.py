@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.harness.results import CSV_COLUMNS
+from bench.harness.results import CSV_COLUMNS, SCHEMA_VERSION
 from bench.io.meshio import save_mesh
 from conftest import icosphere
 from metrics.protocol import PROTOCOL_VERSION
@@ -88,7 +88,7 @@ def test_the_timeout_bounds_the_method_not_the_job(run):
 def test_record_contents(run):
     root, _ = run
     r = _records(root / "out")[("qslim", 100)]
-    assert r["schema"] == 1
+    assert r["schema"] == SCHEMA_VERSION == 2
     assert r["job"]["protocol"]["version"] == PROTOCOL_VERSION
     assert r["method"]["version"] == "1"
     assert len(r["model"]["hash"]) == 40
