@@ -212,6 +212,11 @@ def _near_ring(a, b, l2, mesh, p, factor):
     part, on the same truck) always does."""
     P = mesh.P
     margin = factor * np.sqrt(l2)
+    # the ring's box holds both ends: a point within the ends' box needs no walk
+    if (min(P[a, 0], P[b, 0]) - margin <= p[0] <= max(P[a, 0], P[b, 0]) + margin
+            and min(P[a, 1], P[b, 1]) - margin <= p[1] <= max(P[a, 1], P[b, 1]) + margin
+            and min(P[a, 2], P[b, 2]) - margin <= p[2] <= max(P[a, 2], P[b, 2]) + margin):
+        return True
     lo0 = lo1 = lo2 = np.inf
     hi0 = hi1 = hi2 = -np.inf
     for side in range(2):
