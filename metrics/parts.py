@@ -45,18 +45,26 @@ def welded_components(mesh: Mesh) -> np.ndarray:
     return rank[inverse.reshape(-1)]
 
 
-def nearest_original_faces(original: Mesh, simplified: Mesh) -> np.ndarray:
-    """(k,) int: for each face of ``simplified``, the face of ``original`` nearest to its
-    centroid (see the module's docstring)."""
+def face_samples(original: Mesh):
+    """(points (4m, 3), the face of ``original`` each lies on (4m,), a KD-tree of the
+    points): per face its centroid and the midpoints between the centroid and each
+    corner."""
     from scipy.spatial import cKDTree
 
     corners = original.positions[original.faces]            # (m, 3, 3)
     centroid = corners.mean(axis=1)
-    points = np.concatenate([centroid[:, None], (corners + centroid[:, None]) / 2], axis=1)
-    owner = np.repeat(np.arange(original.n_faces), 4)
-    tree = cKDTree(points.reshape(-1, 3))
+    points = np.concatenate([centroid[:, None], (corners + centroid[:, None]) / 2],
+                            axis=1).reshape(-1, 3)
+    return points, np.repeat(np.arange(original.n_faces), 4), cKDTree(points)
+
+
+def nearest_original_faces(original: Mesh, simplified: Mesh, samples=None) -> np.ndarray:
+    """(k,) int: for each face of ``simplified``, the face of ``original`` nearest to its
+    centroid (see the module's docstring); ``samples``: :func:`face_samples` of
+    ``original``, when the caller has them."""
     if simplified.n_faces == 0:
         return np.zeros(0, np.int64)
+    _, owner, tree = samples or face_samples(original)
     _, nearest = tree.query(simplified.positions[simplified.faces].mean(axis=1))
     return owner[nearest]
 
@@ -77,9 +85,10 @@ def parts_lost(original: Mesh, simplified: Mesh) -> dict:
     materials = face_materials(original)
     if materials is None:
         materials = np.zeros(original.n_faces, np.int64)
-    nearest = nearest_original_faces(original, simplified)
+    samples = face_samples(original)
+    nearest = nearest_original_faces(original, simplified, samples)
     kept_components = set(np.unique(components[nearest]).tolist())
-    kept_components |= _matched_components(original, components, simplified)
+    kept_components |= _matched_components(samples, components, simplified)
     lost_c = np.setdiff1d(np.unique(components), np.array(sorted(kept_components), np.int64))
     lost_m = np.setdiff1d(np.unique(materials), np.unique(materials[nearest]))
     areas = face_areas(original.positions, original.faces)
@@ -88,7 +97,7 @@ def parts_lost(original: Mesh, simplified: Mesh) -> dict:
     return {"components": len(lost_c), "area": share, "materials": len(lost_m)}
 
 
-def _matched_components(original: Mesh, components: np.ndarray, simplified: Mesh) -> set:
+def _matched_components(samples, components: np.ndarray, simplified: Mesh) -> set:
     """The original components matched one to one with the connected components of
     ``simplified`` (:func:`scipy.optimize.linear_sum_assignment` over the mean distance
     from a result component's vertices and face centroids to an original component's
@@ -99,12 +108,8 @@ def _matched_components(original: Mesh, components: np.ndarray, simplified: Mesh
 
     if simplified.n_faces == 0:
         return set()
-    corners = original.positions[original.faces]
-    centroid = corners.mean(axis=1)
-    samples = np.concatenate([centroid[:, None], (corners + centroid[:, None]) / 2],
-                             axis=1).reshape(-1, 3)
-    owner = np.repeat(components, 4)
-    everything = cKDTree(samples)
+    sample_points, face, everything = samples
+    owner = components[face]
     trees: dict = {}
     result = welded_components(simplified)
     n_result, n_original = int(result.max()) + 1, int(components.max()) + 1
@@ -113,10 +118,10 @@ def _matched_components(original: Mesh, components: np.ndarray, simplified: Mesh
         faces = simplified.faces[result == r]
         points = np.concatenate([simplified.positions[np.unique(faces)],
                                  simplified.positions[faces].mean(axis=1)])
-        _, near = everything.query(points, k=min(CANDIDATES, len(samples)))
+        _, near = everything.query(points, k=min(CANDIDATES, len(sample_points)))
         for c in np.unique(owner[near]):
             if c not in trees:
-                trees[c] = cKDTree(samples[owner == c])
+                trees[c] = cKDTree(sample_points[owner == c])
             cost[r, c] = float(trees[c].query(points)[0].mean())
     rows, cols = linear_sum_assignment(cost)
     return {int(c) for r, c in zip(rows, cols) if cost[r, c] < _UNMATCHED}
