@@ -11,6 +11,7 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.errors import InputError
+from bench.harness.results import OFF_TARGET, OFF_TARGET_STATUS
 from bench.harness.runner import (
     EXECUTORS,
     default_threads,
@@ -290,11 +291,12 @@ def finish(out: Path, build_report: bool = True, single_file: bool = False) -> i
         cols.insert(cols.index("seconds"), "exterior_share")
     with_pd_options(lambda: print(table[cols].to_string(index=False)))
     failed = table[table.status == "failed"]
-    off = table[table.status == "ok, off target"]
+    off = table[table.status == OFF_TARGET_STATUS]
     for path in written:
         print(f"bench: wrote {path}", file=sys.stderr)
     if len(off):
-        print(f"bench: {len(off)} of {len(table)} results ended more than 10 % from their "
+        print(f"bench: {len(off)} of {len(table)} results ended more than "
+              f"{OFF_TARGET * 100:g} % from their "
               "target (status 'ok, off target'; the report's Failures section says why)",
               file=sys.stderr)
     if len(failed):

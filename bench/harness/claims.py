@@ -207,7 +207,9 @@ def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
     if claim.against:
         wanted[canonical_label(claim.against)] = "against"
     cells: dict[tuple, dict] = {}
-    statuses = ("ok", "ok, off target") if claim.metric in ANY_TARGET else ("ok",)
+    from bench.harness.results import EVALUATED, OK
+
+    statuses = EVALUATED if claim.metric in ANY_TARGET else (OK,)
     for r in records:
         job = r.get("job") or {}
         role = wanted.get(canonical_label(job.get("label", "")))

@@ -45,7 +45,8 @@ from bench.harness.report_table import cell as _cell
 from bench.harness.report_table import esc as _esc
 from bench.harness.report_viewer import VIEWER_SCRIPT, Viewers, single_file_note
 from bench.harness.results import (
-    STATUSES,
+    EVALUATED,
+    OFF_TARGET_STATUS,
     evaluated,
     image_settings,
     load_records,
@@ -213,7 +214,7 @@ def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
     """A model's heading, plots, exterior table, silhouette histograms, comparison grids,
     3D view (a note instead with ``viewers`` None: ``--single-file``) and sheets."""
     own = [r for r in records if r["job"]["model"] == model]
-    ok = table[(table.model == model) & table.status.isin(STATUSES[:2])]
+    ok = table[(table.model == model) & table.status.isin(EVALUATED)]
     images = {id(r): sheet_images(run_dir, r, refused, out)  # by record: a key may be
               for r in own if evaluated(r)}                   # missing in an older run
     if viewers is None:
@@ -541,7 +542,7 @@ def _failures(records: list[dict]) -> str:
     reason the method gave, then metrics that raised in evaluated jobs (whose other
     figures stand)."""
     bad = [r for r in records if not evaluated(r)]
-    off = [r for r in records if r["status"] == STATUSES[1]]
+    off = [r for r in records if r["status"] == OFF_TARGET_STATUS]
     partial = [r for r in records if evaluated(r) and r.get("metric_errors")]
     if not bad and not partial and not off:
         return "<p>None.</p>"

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 from bench.harness.report_table import esc
-from bench.harness.results import shading_label
+from bench.harness.results import evaluated, shading_label
 
 __all__ = ["GRID_SCRIPT", "comparison_grids"]
 
@@ -39,7 +39,7 @@ def _grids(records: list[dict], images: dict, slug: str) -> list[tuple]:
     meet (with one, its sheet says it all)."""
     groups: dict[tuple, list[dict]] = {}
     for r in records:
-        if r["status"] in ("ok", "ok, off target") and id(r) in images:
+        if evaluated(r) and id(r) in images:
             groups.setdefault((r["job"]["target_faces"], shading_label(r["job"]["protocol"])),
                               []).append(r)
     return [(f"grid-{slug}-{n}", target, shading, group)

@@ -21,6 +21,7 @@ import html
 import numpy as np
 
 from bench.harness.check import metric_info
+from bench.harness.results import OFF_TARGET_STATUS
 
 __all__ = ["SCRIPT", "cell", "esc", "summary_html"]
 
@@ -168,7 +169,7 @@ def _reason(record: dict) -> str:
     characters, control characters shown escaped; empty for an ok job."""
     if record.get("status") == "ok":
         return ""
-    if record.get("status") == "ok, off target":
+    if record.get("status") == OFF_TARGET_STATUS:
         faces = (record.get("metrics") or {}).get("faces")
         text = _printable(record.get("stop_reason") or
                           f"{faces} faces for a target of {record['job']['target_faces']}")

@@ -53,6 +53,7 @@ from typing import NamedTuple
 
 from bench.harness.report_images import run_file
 from bench.harness.report_table import esc
+from bench.harness.results import evaluated
 
 __all__ = ["MAX_MESH_BYTES", "VIEWER_SCRIPT", "Glb", "Viewers", "run_glb", "single_file_note",
            "wrapper_path"]
@@ -125,7 +126,7 @@ def glb_problem(data: bytes) -> str | None:
 
 def single_file_note(records: list[dict]) -> str:
     """What a ``--single-file`` report says instead of a model's 3D view."""
-    if not any(r["status"] in ("ok", "ok, off target") for r in records):
+    if not any(evaluated(r) for r in records):
         return ""
     return ("<h3>3D view</h3><p class='note'>Left out of this single-file report: the 3D "
             "view loads three.js and the meshes as files of the run folder "
@@ -216,7 +217,7 @@ class Viewers:
         from bench.harness.jobs import mesh_paths
         from bench.harness.results import shading_label
 
-        ok = [r for r in records if r["status"] in ("ok", "ok, off target") and id(r) in keys]
+        ok = [r for r in records if evaluated(r) and id(r) in keys]
         if not ok:
             return ""
         ok.sort(key=lambda r: (-r["job"]["target_faces"], r["job"]["label"]))

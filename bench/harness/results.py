@@ -71,16 +71,18 @@ SCHEMA_VERSION = 2
 #: The statuses a record can have: ``ok``, ``ok, off target`` (evaluated, but its face
 #: count is more than :data:`OFF_TARGET` away from the target: compared with nothing
 #: at another face count, never marked best), ``failed``, ``skipped``.
-STATUSES = ("ok", "ok, off target", "failed", "skipped")
 OK = "ok"
 OFF_TARGET_STATUS = "ok, off target"
+STATUSES = (OK, OFF_TARGET_STATUS, "failed", "skipped")
+#: The statuses of records with figures.
+EVALUATED = (OK, OFF_TARGET_STATUS)
 #: The relative distance from its target beyond which a result is off target.
 OFF_TARGET = 0.10
 
 
 def evaluated(record: dict) -> bool:
     """True for a record with figures: ``ok`` or ``ok, off target``."""
-    return record.get("status") in (OK, OFF_TARGET_STATUS)
+    return record.get("status") in EVALUATED
 
 
 def result_status(faces: int, target: int) -> str:

@@ -37,6 +37,7 @@ from bench.harness.jobs import (
     run_job,
     store_result,
 )
+from bench.harness.results import EVALUATED
 
 __all__ = ["EXECUTORS", "SHEET_VIEWS", "Job", "JobResult", "LocalPool", "environment",
            "execute", "method_label", "next_job", "plan", "remaining", "run_job"]
@@ -54,7 +55,7 @@ def remaining(jobs: list[Job], run_dir: Path) -> list[Job]:
         path = Path(run_dir) / "records" / f"{job.key}.json"
         try:
             return json.loads(path.read_text(encoding="utf-8")).get("status") in (
-                "ok", "ok, off target", "skipped")
+                *EVALUATED, "skipped")
         except (OSError, ValueError, AttributeError):
             return False
 
