@@ -27,7 +27,7 @@ def _fixed_blas_kernel() -> None:
 
 _fixed_blas_kernel()
 
-from bench.mesh import Mesh  # after the BLAS kernel is fixed
+from bench.core.mesh import Mesh  # after the BLAS kernel is fixed
 
 __version__ = "0.1.0"
 __all__ = ["Mesh", "__version__"]

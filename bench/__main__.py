@@ -1,4 +1,4 @@
-from bench.cli import entry
+from bench.commands.cli import entry
 
 if __name__ == "__main__":  # not when a spawned worker process imports it
     entry()

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.errors import InputError
-from bench.mesh import Mesh, compact
-from bench.method import Method, SimplifyResult, bounded
+from bench.core.errors import InputError
+from bench.core.mesh import Mesh, compact
+from bench.core.method import Method, SimplifyResult, bounded
 
 __all__ = ["FastSimplification", "QSlim", "QSlimTexture", "fewest_faces"]
 

@@ -91,9 +91,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.errors import ParamError
-from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult, bounded
+from bench.core.errors import ParamError
+from bench.core.mesh import Mesh
+from bench.core.method import Method, SimplifyResult, bounded
 from methods.engine.policy import Policy
 from methods.engine.scale import at_workable_scale
 from methods.engine.simplify import simplify_mesh

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult, bounded
+from bench.core.mesh import Mesh
+from bench.core.method import Method, SimplifyResult, bounded
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh
 

@@ -54,9 +54,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from bench.errors import MeshWarning, MethodError, ParamError
-from bench.mesh import Mesh, compact
-from bench.method import Method, SimplifyResult, bounded, target_tolerance
+from bench.core.errors import MeshWarning, MethodError, ParamError
+from bench.core.mesh import Mesh, compact
+from bench.core.method import Method, SimplifyResult, bounded, target_tolerance
 
 __all__ = [
     "LIBRARY_VERSION",
@@ -369,7 +369,7 @@ class _Node(Method):
     @classmethod
     def unavailable_reason(cls) -> str | None:
         """Why this row cannot run here (Node or the npm package missing), with the
-        command that fixes it; None when it can (bench.registry asks)."""
+        command that fixes it; None when it can (bench.core.registry asks)."""
         return node_problem(cls.package)
 
 

@@ -89,8 +89,8 @@ from typing import Literal
 
 import numpy as np
 
-from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult, bounded
+from bench.core.mesh import Mesh
+from bench.core.method import Method, SimplifyResult, bounded
 from methods.mt.cache import mt_and_bounds
 from methods.mt.errors import ERRORS, FEATURE_SIZES
 from methods.mt.refine import REFINEMENTS, Refiner

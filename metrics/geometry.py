@@ -18,12 +18,12 @@ away); *backward* samples the simplified mesh and measures the distance to the o
 (parts of the result that stray from the original). All distances are fractions of the
 original's bounding-box diagonal.
 
-The :class:`~bench.metric.Metric` constants :data:`HAUSDORFF_MEAN` and
+The :class:`~bench.core.metric.Metric` constants :data:`HAUSDORFF_MEAN` and
 :data:`HAUSDORFF_MAX` are called as ``compute(original, simplified, ctx)`` with ``ctx`` a
 dict that may hold ``"hausdorff_samples"`` (int) or a ``"protocol"`` whose
 ``hausdorff_samples`` is used; the result of :func:`hausdorff` is cached in it under
 ``"hausdorff"``, so both metrics share one computation. They need ``"hausdorff"``
-(:data:`bench.metric.NEEDS`): :func:`metrics.protocol.evaluate` puts that result in
+(:data:`bench.core.metric.NEEDS`): :func:`metrics.protocol.evaluate` puts that result in
 ``ctx`` before any metric runs, so the distances are sampled once per evaluation.
 """
 
@@ -31,8 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh import Mesh, face_areas
-from bench.metric import Metric
+from bench.core.mesh import Mesh, face_areas
+from bench.core.metric import Metric
 
 __all__ = ["hausdorff", "sample_surface", "distance_to_surface", "HAUSDORFF_SAMPLES",
            "HAUSDORFF_MEAN", "HAUSDORFF_MAX"]
@@ -237,7 +237,7 @@ def _face_samples(positions: np.ndarray, faces: np.ndarray, areas: np.ndarray, c
 
 def _check_mesh(mesh, what: str) -> None:
     if not isinstance(mesh, Mesh):
-        raise ValueError(f"{what} must be a bench.mesh.Mesh, got {type(mesh).__name__}; "
+        raise ValueError(f"{what} must be a bench.core.mesh.Mesh, got {type(mesh).__name__}; "
                          "build one with bench.io.validate.build_mesh")
     if mesh.n_faces == 0:
         raise ValueError(f"{what} has no faces; a surface distance needs at least one "

@@ -11,7 +11,7 @@ simplified mesh's, as uint8 RGB arrays of shape (V, H, W, 3):
   package), by default on the six views of :data:`FLIP_VIEWS` because it costs far more
   than the other two.
 
-The :class:`~bench.metric.Metric` constants at the bottom need ``"images"``: they are
+The :class:`~bench.core.metric.Metric` constants at the bottom need ``"images"``: they are
 called as ``compute(original, simplified, ctx)`` with ``ctx`` a dict holding
 
 - ``"original_images"``, ``"simplified_images"``: ndarray of shape (24, H, W, 3) uint8,
@@ -20,7 +20,7 @@ called as ``compute(original, simplified, ctx)`` with ``ctx`` a dict holding
 - optionally ``"protocol"``, whose ``flip_views`` ("subset" or "all") FLIP follows, and
   ``"flip_views"``, a ``views`` argument for :func:`flip_mean` overriding the protocol.
 
-Each returns a :class:`~bench.metric.Value`: the scalar with its per-view values.
+Each returns a :class:`~bench.core.metric.Value`: the scalar with its per-view values.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bench.metric import Metric, Value
+from bench.core.metric import Metric, Value
 from metrics.shading import LUMA_WEIGHTS, luminance  # re-exported: callers of the metrics use them
 
 __all__ = ["luminance", "d_rms", "ssim_mean", "flip_mean", "FLIP_VIEWS", "FLIP_PPD",

@@ -2,7 +2,7 @@
 (Lindstrom & Turk 2000, §5.2, Plates 2–3).
 
 A model opts in by describing its exterior in its metadata (as the built-in ``interior``
-model, :mod:`bench.models.interior`, does)::
+model, :mod:`bench.catalog.interior`, does)::
 
     mesh.metadata["exterior_sphere"] = {"centre": [x, y, z], "radius": r}
 
@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
-from bench.mesh import Mesh
-from bench.metric import Metric
+from bench.core.mesh import Mesh
+from bench.core.metric import Metric
 
 __all__ = ["CLASSIFIER_KEY", "exterior_sphere", "exterior_faces", "exterior_share",
            "EXTERIOR_SHARE"]

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.core.mesh import Mesh, face_areas
+from bench.core.metric import Metric
 from bench.io.atlas import face_materials
-from bench.mesh import Mesh, face_areas
-from bench.metric import Metric
 
 
 def welded_components(mesh: Mesh) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The evaluation protocol in one place (Lindstrom & Turk 2000, §3.2 and §5.1).
 
 :func:`evaluate` measures a simplified mesh against its original with every metric
-registered under ``bench.metrics`` (built-in and third-party alike: :mod:`bench.metric`).
+registered under ``bench.metrics`` (built-in and third-party alike: :mod:`bench.core.metric`).
 It computes the shared inputs once — the images, the Metro distances, the silhouette
 histogram, the counts — and hands each metric those it declares in ``needs``. The
 built-in metrics make up the protocol:
@@ -24,7 +24,7 @@ Two settings vary the images for comparisons made the way another paper makes th
 named view set of :data:`metrics.views.VIEW_SETS` (``representative``: one view, as
 Williams et al. 2003 compare in §6 and Figure 4). Both are recorded with every result
 and, when not at their defaults, in the job's key and its evaluation label
-(:func:`bench.harness.results.shading_label`), so results under different settings are
+(:func:`bench.records.results.shading_label`), so results under different settings are
 never matched with each other; FLIP's view subset belongs to the 24 views, so any other
 view set runs FLIP on every one of its views.
 
@@ -47,7 +47,7 @@ from typing import Literal
 
 import numpy as np
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 
 __all__ = ["PROTOCOL_VERSION", "Protocol", "Evaluation", "evaluate", "registered_metrics",
            "model_metrics", "original_images", "render_views", "render_per_view", "cache_dir"]
@@ -185,7 +185,7 @@ def model_metrics(original: Mesh, simplified: Mesh) -> dict:
 def registered_metrics() -> tuple[list[tuple[str, object]], dict[str, str]]:
     """The available registered metrics as (name, Metric) in name order, and the
     unavailable ones as name -> why (with the fix)."""
-    from bench.registry import registry
+    from bench.core.registry import registry
 
     usable, problems = [], {}
     for entry in registry("metric"):
@@ -203,7 +203,7 @@ _RECORDED_INPUTS = frozenset({"images", "hausdorff", "silhouette"})
 
 def _shared_inputs(needs: set, original: Mesh, simplified: Mesh, protocol: Protocol,
                    reference_images, view_meshes, seconds: dict) -> dict:
-    """``ctx`` with each input of ``needs`` (keys of :data:`bench.metric.NEEDS`) computed
+    """``ctx`` with each input of ``needs`` (keys of :data:`bench.core.metric.NEEDS`) computed
     once, and its time in ``seconds``."""
     from metrics import geometry, silhouette, topology
     from metrics.views import silhouette_cameras
@@ -274,10 +274,10 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
     The flow: (1) gather the metrics (the available entries of the ``bench.metrics``
     registry, built-in and third-party alike; an unavailable one is an error of that
     metric); (2) compute once each shared input that a metric needs
-    (:data:`bench.metric.NEEDS`) or the record carries — render the 24 views, sample
+    (:data:`bench.core.metric.NEEDS`) or the record carries — render the 24 views, sample
     the Hausdorff distances, count silhouettes and topology; (3) call each metric's
     ``compute(original, simplified, ctx)`` with those inputs in ``ctx``; its value goes
-    to ``metrics[name]`` and, for a :class:`~bench.metric.Value`, its per-view values to
+    to ``metrics[name]`` and, for a :class:`~bench.core.metric.Value`, its per-view values to
     ``per_view[name]``.
 
     A metric that raises, returns something that is not a number or is unavailable

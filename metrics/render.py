@@ -325,7 +325,7 @@ def _offscreen(width: int, height: int):
         try:
             _OFFSCREEN = _pyrender.OffscreenRenderer(width, height)
         except Exception as error:
-            from bench.errors import RenderError
+            from bench.core.errors import RenderError
 
             cause = str(error).strip().splitlines()
             raise RenderError(
@@ -379,7 +379,7 @@ class EvalRenderer:
 
         Parameters
         ----------
-        mesh : bench.mesh.Mesh
+        mesh : bench.core.mesh.Mesh
             Positions, faces and, if present, uv + texture are used; vertex colours are
             ignored. A mesh without faces renders as background.
         cameras : sequence of metrics.views.Camera

@@ -22,7 +22,7 @@ more (non-manifold)   its faces are neither all front-facing nor all back-facing
 The rule for non-manifold edges extends the manifold one: a fold between a visible and a
 hidden sheet is drawn as an outline either way.
 
-The :class:`~bench.metric.Metric` :data:`SILHOUETTE_MEAN` is called as
+The :class:`~bench.core.metric.Metric` :data:`SILHOUETTE_MEAN` is called as
 ``compute(original, simplified, ctx)`` with ``ctx`` a dict that may hold ``"silhouette"``
 (the protocol's :class:`SilhouetteHistogram` of the simplified mesh, which it then reads)
 or ``"silhouette_eyes"``, ndarray of shape (V, 3); without it the eyes are the protocol's 20
@@ -35,8 +35,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from bench.mesh import Mesh
-from bench.metric import Metric
+from bench.core.mesh import Mesh
+from bench.core.metric import Metric
 
 __all__ = ["SilhouetteHistogram", "silhouette_counts", "silhouette_histogram",
            "SILHOUETTE_MEAN"]
@@ -141,7 +141,7 @@ def _count_per_edge(faces: np.ndarray, edges: np.ndarray, front: np.ndarray) -> 
 
 def _check(mesh, eyes) -> np.ndarray:
     if not isinstance(mesh, Mesh):
-        raise ValueError(f"mesh must be a bench.mesh.Mesh, got {type(mesh).__name__}")
+        raise ValueError(f"mesh must be a bench.core.mesh.Mesh, got {type(mesh).__name__}")
     if mesh.n_faces == 0:
         raise ValueError("mesh has no faces, hence no edges to histogram; pass a mesh "
                          "with at least one triangle")

@@ -55,8 +55,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh import Mesh, Welded
-from bench.metric import Metric
+from bench.core.mesh import Mesh, Welded
+from bench.core.metric import Metric
 
 __all__ = [
     "BOUNDARY_EDGES",

@@ -20,8 +20,8 @@ import math
 import numpy as np
 from numba import njit
 
-from bench.mesh import Mesh
-from bench.metric import Metric
+from bench.core.mesh import Mesh
+from bench.core.metric import Metric
 
 __all__ = ["NEVER_SEEN_SHARE", "never_seen_share", "seen_faces"]
 

@@ -31,8 +31,8 @@ import sys
 sys.path.insert(0, sys.argv[1])
 sys.path.insert(1, sys.argv[2])
 import bench
-from bench.method import run_method
-from bench.models import resolve_model
+from bench.core.method import run_method
+from bench.catalog import resolve_model
 from conftest import icosphere
 from {module} import {cls}
 run_method({cls}(), icosphere(3), 200)

@@ -9,9 +9,9 @@ import sys
 from scipy.spatial import cKDTree
 
 import bench  # noqa: F401  (the BLAS kernel pin comes first)
-from bench.method import run_method
-from bench.models import resolve_model
-from bench.registry import registry
+from bench.catalog import resolve_model
+from bench.core.method import run_method
+from bench.core.registry import registry
 from metrics.interior import exterior_faces, exterior_sphere
 from metrics.visibility import seen_faces
 

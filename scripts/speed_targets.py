@@ -3,7 +3,7 @@
     .venv/bin/python scripts/speed_targets.py [--rounds 3] [--jobs NAME,...] [--threads T]
 
 Each job runs in a fresh process: the model is loaded, the method is warmed up on the
-tiny meshes of :mod:`bench.harness.warmup` (numba's cache loading or compilation is not
+tiny meshes of :mod:`bench.run.warmup` (numba's cache loading or compilation is not
 method time, as in ``bench run``), then timed on the model (``wall_seconds``, the
 method's own time). The jobs take turns round after round, so drift of a shared machine
 hits them alike; the table gives each job's median, the triangles it removes per second
@@ -54,10 +54,10 @@ JOB_LIMIT = 1800.0
 CODE = """
 import sys, warnings
 import bench
-from bench.harness.warmup import warm_up
-from bench.method import run_method
-from bench.models import resolve_model
-from bench.registry import registry
+from bench.run.warmup import warm_up
+from bench.core.method import run_method
+from bench.catalog import resolve_model
+from bench.core.registry import registry
 cls = registry("method").load(sys.argv[1])
 mesh = resolve_model(sys.argv[2])
 warm_up(cls)

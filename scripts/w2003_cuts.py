@@ -17,7 +17,7 @@ import numpy as np
 from scipy.stats import spearmanr
 
 import bench  # noqa: F401  (the BLAS kernel pin comes first)
-from bench.models import resolve_model
+from bench.catalog import resolve_model
 from methods.mt.cache import mt_and_bounds
 from methods.mt.csf import ContrastSensitivity
 from methods.mt.errors import node_errors

@@ -38,7 +38,7 @@ def icosphere(subdivisions: int = 2, name: str = "icosphere"):
     """trimesh's unit icosphere as a Mesh (20 * 4^subdivisions faces, closed)."""
     import trimesh
 
-    from bench.mesh import Mesh
+    from bench.core.mesh import Mesh
 
     ico = trimesh.creation.icosphere(subdivisions)
     return Mesh(np.asarray(ico.vertices), np.asarray(ico.faces).astype(np.int32), name=name)
@@ -62,7 +62,7 @@ def write(path: Path, text: str) -> Path:
 @pytest.fixture(scope="session")
 def bunny_textured():
     """The 10k-face textured bunny (loaded once; do not mutate its arrays)."""
-    from bench.models import BUNNY_TEXTURED
+    from bench.catalog import BUNNY_TEXTURED
 
     return BUNNY_TEXTURED.load()
 
@@ -70,7 +70,7 @@ def bunny_textured():
 @pytest.fixture(scope="session")
 def small_torus():
     """make_torus(64, 32): 4096 faces, closed, with UV seams and a texture."""
-    from bench.models.torus import make_torus
+    from bench.catalog.torus import make_torus
 
     return make_torus(64, 32)
 

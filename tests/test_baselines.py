@@ -11,9 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-from bench.errors import InputError, MethodError
-from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult, run_method, target_tolerance
+from bench.core.errors import InputError, MethodError
+from bench.core.mesh import Mesh
+from bench.core.method import Method, SimplifyResult, run_method, target_tolerance
 from conftest import TET_FACES, TET_POSITIONS
 from methods.baselines import FastSimplification, QSlim, QSlimTexture, split_wedges
 
@@ -99,8 +99,8 @@ FRESH_SCRIPT = r"""
 import hashlib, json
 import numpy as np
 import pymeshlab
-from bench.models import BUNNY_TEXTURED
-from bench.method import run_method
+from bench.catalog import BUNNY_TEXTURED
+from bench.core.method import run_method
 from methods.baselines import QSlim
 
 mesh = run_method(QSlim(), BUNNY_TEXTURED.load(), 1000).mesh

@@ -11,8 +11,8 @@ machine; FLIP is timed on its own.
 
 import pytest
 
-from bench.method import run_method
-from bench.models import resolve_model
+from bench.catalog import resolve_model
+from bench.core.method import run_method
 from methods.baselines import QSlim
 from metrics import geometry, image, silhouette
 from metrics.protocol import Protocol, original_images, render_views
@@ -49,7 +49,7 @@ def test_flip_six_views(benchmark, bunny_lod):
 
 @pytest.mark.parametrize("method", ["qslim", "fast-simplification"])
 def test_simplify_bunny_1332(benchmark, method):
-    from bench.registry import registry
+    from bench.core.registry import registry
 
     bunny = resolve_model("bunny")
     cls = registry("method").load(method)

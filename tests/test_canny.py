@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from methods.engine import canny
 from methods.engine.canny import (
     border_image_with_edges,

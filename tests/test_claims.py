@@ -9,11 +9,11 @@ import math
 
 import pytest
 
-from bench.cli import main
-from bench.harness.check import FAILING_MARKS, baseline_problem, compare, make_baseline
-from bench.harness.claims import STATS_PREFIX, TARGET_DISTANCE, Claim, evaluate_claim
-from bench.harness.results import write_record
-from bench.harness.suites import SUITES, Suite
+from bench.commands.cli import main
+from bench.records.check import FAILING_MARKS, baseline_problem, compare, make_baseline
+from bench.records.claims import STATS_PREFIX, TARGET_DISTANCE, Claim, evaluate_claim
+from bench.records.results import write_record
+from bench.records.suites import SUITES, Suite
 from conftest import made_up_record
 
 
@@ -116,7 +116,7 @@ def test_a_suite_scopes_its_claims_to_its_models_and_budgets():
 
 
 def test_every_claim_of_the_suites_names_variants_and_metrics_that_exist():
-    from bench.harness.check import canonical_label, metric_directions
+    from bench.records.check import canonical_label, metric_directions
 
     directions = metric_directions()
     names = [c.name for s in SUITES.values() for c in s.claims]

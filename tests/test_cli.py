@@ -14,8 +14,8 @@ import sys
 import numpy as np
 import pytest
 
+from bench.core.method import target_tolerance
 from bench.io.meshio import load_mesh
-from bench.method import target_tolerance
 from conftest import write
 
 BUILTINS = {
@@ -211,7 +211,7 @@ def test_list_one_kind(what):
 
 def test_listing_models_does_not_build_the_derived_ones():
     """The pre-decimated models cost an engine run each: a listing names them only."""
-    code = ("import sys; from bench.cli import main; main(['list', 'models']); "
+    code = ("import sys; from bench.commands.cli import main; main(['list', 'models']); "
             "sys.stdout.flush(); print('ENGINE' if 'methods.engine.simplify' in sys.modules "
             "else 'NO-ENGINE')")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -229,7 +229,7 @@ def test_list_all():
     suites, claims = found.pop("suites"), found.pop("claims")
     for kind, (count, table) in found.items():
         check_section(kind, count, table)
-    from bench.harness.suites import SUITES
+    from bench.records.suites import SUITES
 
     count, table = suites
     assert count == len(SUITES) and set(table) - {"name"} == set(SUITES)

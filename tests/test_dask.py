@@ -24,10 +24,10 @@ from pathlib import Path
 import numba
 import pytest
 
-from bench.harness.jobs import Job, JobResult, store_result
-from bench.harness.results import evaluated
-from bench.harness.runner import execute, remaining
 from bench.io.meshio import save_mesh
+from bench.records.results import evaluated
+from bench.run.jobs import Job, JobResult, store_result
+from bench.run.runner import execute, remaining
 from conftest import icosphere
 from metrics.protocol import Protocol
 
@@ -149,7 +149,7 @@ def test_worker_killed_mid_job_is_retried_and_the_rest_completes(ico, tmp_path):
 def test_job_that_keeps_losing_its_worker_fails_once(ico, tmp_path):
     """A job that kills every worker it is given: retried the allowed number of times,
     then one failed record that says so; the other job completes."""
-    from bench.harness.cluster import LOST_WORKER_RETRIES
+    from bench.run.cluster import LOST_WORKER_RETRIES
 
     killer = Job(ico, "kill-worker", 100, {}, SMALL)
     other = Job(ico, "qslim", 100, {}, SMALL)
@@ -278,8 +278,8 @@ def test_command_line_errors_are_one_line(ico, tmp_path, case):
 
 
 def test_unreachable_scheduler_is_a_clear_error_soon(ico, tmp_path, monkeypatch):
-    from bench.errors import ClusterError
-    from bench.harness import cluster
+    from bench.core.errors import ClusterError
+    from bench.run import cluster
 
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 2)  # 10 s in use; the same path
     start = time.monotonic()

@@ -9,7 +9,7 @@ import itertools
 import numpy as np
 import pytest
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from methods.engine.policy import Policy
 from methods.engine.quadrics import (
     _boundary_corners,
@@ -408,7 +408,7 @@ def test_wedge_pairs_are_one_per_distinct_pair():
     """Off a seam the edge's two faces use the same two wedges: one pair. Along a box
     edge (a seam) each side merges its own wedges: two pairs. A corner's third wedge,
     on the box face the edge does not touch, is in no pair."""
-    from bench.models.gamemodels import make_crate
+    from bench.catalog.gamemodels import make_crate
     from methods.engine.wedges import _wedge_pairs
 
     mesh = make_crate(3)
@@ -443,7 +443,7 @@ def test_wedge_quadrics_through_collapses_are_sums_over_the_original_faces():
     have merged into it, each corner once. The sequence includes collapses between ends
     with unequal wedge counts (a corner's three and an edge vertex's two, an edge
     vertex's two and a face vertex's one), whose unpaired wedges keep their quadrics."""
-    from bench.models.gamemodels import make_crate
+    from bench.catalog.gamemodels import make_crate
     from methods.engine.collapse import _collapse
     from methods.engine.cost import _edge_quadric
     from methods.engine.state import N_KINDS
@@ -525,7 +525,7 @@ def test_textured_box_keeps_its_corners_at_every_budget():
     The engine's order of collapses does not depend on the budget (the budget only
     stops it), so the result at each budget is the log of one run to 12 faces replayed
     up to that budget; two budgets run on their own check that."""
-    from bench.models.gamemodels import make_crate
+    from bench.catalog.gamemodels import make_crate
     from methods.quadric import Quadric
     from metrics.geometry import hausdorff
 

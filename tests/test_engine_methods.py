@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from bench.errors import InputError
-from bench.method import run_method, target_tolerance
-from bench.registry import registry
+from bench.core.errors import InputError
+from bench.core.method import run_method, target_tolerance
+from bench.core.registry import registry
 
 
 @pytest.mark.parametrize("name", ["quadric", "memoryless", "canny-texture"])
@@ -46,7 +46,7 @@ def test_canny_texture_shows_its_borders_and_penalised_edges(bunny_textured):
 
 
 def test_canny_texture_needs_a_texture():
-    from bench.models import resolve_model
+    from bench.catalog import resolve_model
 
     method = registry("method").load("canny-texture")()
     tiny = resolve_model("bunny-textured").replace(texture=None)
@@ -169,7 +169,7 @@ def test_canny_texture_on_flat_faces_orders_by_area_ratio():
     """The crate's faces are flat with affine UVs: its base costs are rounding noise
     (some negative), which measures no scale, so the penalty is the area ratio over
     its mean, a pure number."""
-    from bench.models import resolve_model
+    from bench.catalog import resolve_model
 
 
     crate = resolve_model("crate")

@@ -24,9 +24,9 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.errors import ParamError
-from bench.mesh import Mesh
-from bench.models.gamemodels import make_barrel, make_crate
+from bench.catalog.gamemodels import make_barrel, make_crate
+from bench.core.errors import ParamError
+from bench.core.mesh import Mesh
 from conftest import blob
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh

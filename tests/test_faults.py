@@ -19,10 +19,10 @@ from pathlib import Path
 
 import pytest
 
-from bench.harness.jobs import Job
-from bench.harness.results import evaluated
-from bench.harness.runner import execute, remaining
 from bench.io.meshio import save_mesh
+from bench.records.results import evaluated
+from bench.run.jobs import Job
+from bench.run.runner import execute, remaining
 from conftest import icosphere
 from metrics.protocol import Protocol
 

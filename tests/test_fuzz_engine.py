@@ -29,10 +29,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bench.errors import InputError
+from bench.core.errors import InputError
+from bench.core.method import run_method, target_tolerance
+from bench.core.registry import registry
 from bench.io.validate import build_mesh
-from bench.method import run_method, target_tolerance
-from bench.registry import registry
 
 for name, examples in (("engine", 40), ("engine-long", 300)):
     settings.register_profile(name, derandomize=True, max_examples=examples, deadline=None,

@@ -17,9 +17,9 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bench.errors import InputError
+from bench.core.errors import InputError
+from bench.core.mesh import face_normals
 from bench.io.meshio import load_mesh
-from bench.mesh import face_normals
 
 settings.register_profile("loader", derandomize=True, max_examples=120, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])

@@ -14,8 +14,8 @@ import sys
 
 import pytest
 
-from bench.errors import InputError
-from bench.harness.check import FAILING_MARKS, compare, load_baseline, make_baseline
+from bench.core.errors import InputError
+from bench.records.check import FAILING_MARKS, compare, load_baseline, make_baseline
 from metrics.protocol import Protocol
 
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}

@@ -7,7 +7,7 @@ The oracle is Ericson's closest point on a triangle (Real-Time Collision Detecti
 import numpy as np
 import pytest
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from metrics import geometry
 from metrics.geometry import distance_to_surface, hausdorff, sample_surface
 
@@ -242,7 +242,7 @@ def test_errors():
         distance_to_surface(np.zeros((4, 2)), square())
     with pytest.raises(ValueError, match="NaN"):
         distance_to_surface(np.full((1, 3), np.nan), square())
-    with pytest.raises(ValueError, match="bench.mesh.Mesh"):
+    with pytest.raises(ValueError, match="bench.core.mesh.Mesh"):
         hausdorff(square().positions, square())
 
 
@@ -260,8 +260,8 @@ def test_metrics_share_one_computation_through_ctx():
 def test_bunny_agrees_with_meshlabs_own_sampling():
     import pymeshlab
 
-    from bench.method import run_method
-    from bench.models import BUNNY
+    from bench.catalog import BUNNY
+    from bench.core.method import run_method
     from methods.baselines import QSlim
 
     bunny = BUNNY.load()

@@ -12,7 +12,7 @@ import sys
 import pandas as pd
 import pytest
 
-from bench.harness.history import load_history, write_history
+from bench.records.history import load_history, write_history
 from metrics.protocol import Protocol
 
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
@@ -72,8 +72,8 @@ def test_points_are_ordered_by_date_and_checked_against_the_run_before(three_run
 
 
 def test_a_fixed_baseline_checks_every_run_as_ci_does(three_runs, tmp_path):
-    from bench.harness.check import make_baseline
-    from bench.harness.results import load_records
+    from bench.records.check import make_baseline
+    from bench.records.results import load_records
 
     baseline = make_baseline(load_records(three_runs / "b"))  # the worse qslim
     points = load_history([three_runs], baseline=baseline)

@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.core.mesh import Mesh
 from bench.io.meshio import save_mesh
-from bench.mesh import Mesh
 from conftest import TET_FACES, TET_POSITIONS, icosphere, without_own_scripts
 from conftest import made_up_record as record
 
@@ -429,7 +429,7 @@ def loads_back(name: str, check: Callable) -> Callable:
 
 def area_is(expected: float) -> Callable:
     def check(mesh) -> None:
-        from bench.mesh import face_areas
+        from bench.core.mesh import face_areas
 
         assert face_areas(mesh.positions, mesh.faces).sum() == expected
     return check
@@ -993,7 +993,7 @@ def _numeric_fields():
     import dataclasses
     import typing
 
-    from bench.registry import registry
+    from bench.core.registry import registry
 
     out = []
     for entry in registry("method"):
@@ -1013,9 +1013,9 @@ def test_every_parameter_is_checked_by_the_shared_rule(method, name, kind, bound
     """NaN and infinities are refused for every float parameter, and a value just
     outside each declared bound for every number, by the one rule parse_params and
     Method() apply; the default passes it."""
-    from bench.errors import ParamError
-    from bench.method import parse_params
-    from bench.registry import registry
+    from bench.core.errors import ParamError
+    from bench.core.method import parse_params
+    from bench.core.registry import registry
 
     cls = registry("method").load(method)
     cls(parse_params(cls.Params, []))  # the defaults pass

@@ -18,7 +18,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from bench.errors import ParamError
+from bench.core.errors import ParamError
 from conftest import blob
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh

@@ -1,7 +1,7 @@
 """The ``interior`` model (L&T 2000 §5.2) and the ``exterior_share`` metric.
 
 Topology is checked with an independent edge count (a Counter over vertex pairs and a
-union-find over boundary edges), not with bench.mesh's welding; the metric is checked on
+union-find over boundary edges), not with bench.core.mesh's welding; the metric is checked on
 hand-made triangles whose centroids are placed by hand.
 """
 
@@ -13,9 +13,8 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from bench.mesh import Mesh
-from bench.models import INTERIOR, resolve_model
-from bench.models.interior import (
+from bench.catalog import INTERIOR, resolve_model
+from bench.catalog.interior import (
     EXTERIOR_RADIUS,
     INNER_AMPLITUDE,
     INNER_RADIUS,
@@ -24,6 +23,7 @@ from bench.models.interior import (
     geodesic_sphere,
     make_interior,
 )
+from bench.core.mesh import Mesh
 from metrics.interior import EXTERIOR_SHARE, exterior_share, exterior_sphere
 from metrics.protocol import model_metrics
 
@@ -226,7 +226,7 @@ def test_malformed_classification_is_a_clear_error(spec):
 
 
 def test_metric_is_registered_with_a_direction():
-    from bench.registry import registry
+    from bench.core.registry import registry
 
     metric = registry("metric").load("exterior_share")
     assert metric is EXTERIOR_SHARE and metric.higher_is_better is True

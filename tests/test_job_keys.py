@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import pytest
 
-from bench.cli import build_parser
-from bench.harness.check import compare, make_baseline
-from bench.harness.runner import Job, plan
+from bench.commands.cli import build_parser
+from bench.core.mesh import Mesh
 from bench.io.meshio import save_mesh
-from bench.mesh import Mesh
+from bench.records.check import compare, make_baseline
+from bench.run.runner import Job, plan
 from conftest import TET_FACES, TET_POSITIONS
 from metrics.protocol import Protocol
 

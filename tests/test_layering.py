@@ -23,7 +23,7 @@ _PROBE = textwrap.dedent("""
     import sys
     import numpy as np
     import trimesh
-    from bench.mesh import Mesh
+    from bench.core.mesh import Mesh
     from methods.entropy_twin import EntropyTwin
     from methods.image_driven import ImageDriven
     ico = trimesh.creation.icosphere(2)

@@ -1,4 +1,4 @@
-"""LOD chains: ``bench simplify IN OUT --faces N1,N2,...`` (``bench.harness.lods``).
+"""LOD chains: ``bench simplify IN OUT --faces N1,N2,...`` (``bench.run.lods``).
 
 The expected face counts are those of the method run directly on the level's source
 (in this process), so a chain that simplified from the wrong mesh, wrote the wrong
@@ -21,12 +21,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_cli import ENV, assert_one_line_error, bench
 
-from bench.errors import InputError
-from bench.harness.lods import build_levels, level_targets, sidecar_path
+from bench.catalog import resolve_model
+from bench.core.errors import InputError
+from bench.core.method import run_method, target_tolerance
+from bench.core.registry import registry
 from bench.io.meshio import load_mesh, lod_path, save_lods, save_mesh
-from bench.method import run_method, target_tolerance
-from bench.models import resolve_model
-from bench.registry import registry
+from bench.run.lods import build_levels, level_targets, sidecar_path
 from conftest import blob
 from methods.meshopt import node_problem
 from metrics.protocol import Protocol, evaluate
@@ -293,9 +293,9 @@ BAD_LEVELS = {
 
 @pytest.mark.parametrize("case", list(BAD_LEVELS))
 def test_bad_levels_are_one_line_errors(tmp_path, blob_obj, capsys, case):
-    """In this process for speed (``bench.cli.main`` is what the console script runs);
+    """In this process for speed (``bench.commands.cli.main`` is what the console script runs);
     the subprocess test below checks one case as a user sees it."""
-    from bench.cli import main
+    from bench.commands.cli import main
 
     args, fragments = BAD_LEVELS[case]
     code = main(["simplify", str(blob_obj), str(tmp_path / "o.glb"), "-m", "meshopt", *args])
@@ -310,7 +310,7 @@ def test_bad_levels_are_one_line_errors(tmp_path, blob_obj, capsys, case):
 
 
 def test_an_output_that_is_a_directory_is_a_one_line_error(tmp_path, blob_obj, capsys):
-    from bench.cli import main
+    from bench.commands.cli import main
 
     (tmp_path / "o_LOD2.obj").mkdir()
     (tmp_path / "s.glb.lods.json").mkdir()

@@ -1,6 +1,6 @@
 """Multi-material assets (bench.io.atlas, the loaders and writers of bench.io.meshio).
 
-The asset under test is the two-material sphere of ``bench.models.materials``: bricks
+The asset under test is the two-material sphere of ``bench.catalog.materials``: bricks
 (256 x 256) on the northern hemisphere, waves (128 x 256) on the southern, generated
 here. The OBJ and the GLB the tests read are written by the tests themselves (text for
 the OBJ, trimesh for the GLB), not by the suite's writers, so loading is checked
@@ -22,7 +22,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from bench.errors import InputError, MeshWarning
+from bench.catalog.materials import make_two_materials, two_material_parts
+from bench.core.errors import InputError, MeshWarning
+from bench.core.method import run_method
+from bench.core.registry import registry
 from bench.io.atlas import (
     GUTTER,
     Part,
@@ -35,9 +38,6 @@ from bench.io.atlas import (
     wedge_tiles,
 )
 from bench.io.meshio import load_mesh, save_lods, save_mesh
-from bench.method import run_method
-from bench.models.materials import make_two_materials, two_material_parts
-from bench.registry import registry
 
 NAMES = ["bricks", "waves"]
 
@@ -395,7 +395,7 @@ def test_each_half_renders_with_its_own_texture(loaded):
     """
     import dataclasses
 
-    from bench.mesh import Mesh
+    from bench.core.mesh import Mesh
     from metrics.render import BACKGROUND, DEFAULT_CONSTANTS, get_renderer
     from metrics.views import Camera
 

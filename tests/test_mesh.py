@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.mesh import Mesh, face_areas, face_normals
+from bench.core.mesh import Mesh, face_areas, face_normals
 from conftest import SEAM_FACES, SEAM_POSITIONS, SEAM_UV, TET_FACES, TET_POSITIONS
 
 
@@ -260,9 +260,9 @@ def test_bad_shapes_and_dtypes_raise_value_error(kwargs, match):
         Mesh(**args)
 
 
-# -- a mesh from kept faces (bench.mesh.compact, Mesh.keep_faces) -------------------------
+# -- a mesh from kept faces (bench.core.mesh.compact, Mesh.keep_faces) -------------------------
 def test_compact_renumbers_onto_the_used_vertices_in_order():
-    from bench.mesh import compact
+    from bench.core.mesh import compact
 
     used, faces = compact(np.array([[4, 2, 7], [7, 2, 9]]))
     assert used.tolist() == [2, 4, 7, 9]
@@ -273,7 +273,7 @@ def test_compact_renumbers_onto_the_used_vertices_in_order():
 
 
 def test_compact_names_an_index_outside_the_vertices():
-    from bench.mesh import compact
+    from bench.core.mesh import compact
 
     with pytest.raises(ValueError, match="face index 5 is outside the mesh's 5 vertices"):
         compact(np.array([[0, 1, 5]]), 5)

@@ -13,11 +13,11 @@ import struct
 import numpy as np
 import pytest
 
-from bench.errors import MethodError, ParamError
-from bench.mesh import Mesh
-from bench.method import parse_params, run_method, target_tolerance
-from bench.models import BUNNY, BUNNY_TEXTURED, CRATE
-from bench.registry import Registry
+from bench.catalog import BUNNY, BUNNY_TEXTURED, CRATE
+from bench.core.errors import MethodError, ParamError
+from bench.core.mesh import Mesh
+from bench.core.method import parse_params, run_method, target_tolerance
+from bench.core.registry import Registry
 from methods.meshopt import (
     _WORKER,
     LIBRARY_VERSION,
@@ -377,8 +377,8 @@ def test_gltfpack_result_is_read_back_with_its_texture(textured):
 
 
 def test_gltfpack_keeps_each_material_of_a_multi_material_model():
+    from bench.catalog import resolve_model
     from bench.io.atlas import face_materials, materials_of, mixed_faces
-    from bench.models import resolve_model
 
     mesh = resolve_model("two-materials")
     out = run_method(Gltfpack(), mesh, 992)  # 25 %
@@ -460,7 +460,7 @@ def test_an_empty_result_is_a_clear_failure():
 def test_deterministic(name):
     """The same result twice, and with one thread or two for the job (the library runs
     in one Node process, whatever the job's thread count)."""
-    from bench.harness.jobs import use_threads
+    from bench.run.jobs import use_threads
 
     cls = Gltfpack if name == "gltfpack" else VARIANTS[name]
     mesh = CRATE.load()
@@ -510,8 +510,8 @@ def test_a_request_cut_short_is_answered_before_the_script_exits():
 
 
 def test_a_malformed_buffer_is_one_failed_record(tmp_path):
-    from bench.harness.jobs import Job, run_job
-    from bench.harness.results import records_table
+    from bench.records.results import records_table
+    from bench.run.jobs import Job, run_job
 
     good, bad = grid(), grid()
     positions = bad.positions.copy()

@@ -3,7 +3,7 @@ declares and lands in the record, results.csv, index.html and ``bench check`` li
 built-in one.
 
 The third-party package is written into a temporary folder and registered through
-``BENCH_PLUGINS`` (the entry-point path of :mod:`bench.registry`, without installing).
+``BENCH_PLUGINS`` (the entry-point path of :mod:`bench.core.registry`, without installing).
 """
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bench.core.mesh import Mesh
+from bench.core.metric import NEEDS, Metric, Value
+from bench.core.registry import Registry
 from bench.io.meshio import save_mesh
-from bench.mesh import Mesh
-from bench.metric import NEEDS, Metric, Value
-from bench.registry import Registry
 from metrics.protocol import Protocol, evaluate
 
 #: A third party's module: what its authors would ship, registered in their
@@ -35,7 +35,7 @@ import os
 
 import numpy as np
 
-from bench.metric import Metric, Value
+from bench.core.metric import Metric, Value
 from metrics.shading import luminance
 
 
@@ -193,14 +193,14 @@ def test_evaluate_uses_every_registered_metric(monkeypatch, tmp_path):
     import types
     from importlib.metadata import EntryPoint
 
-    import bench.registry
+    import bench.core.registry
 
     module = types.ModuleType("tp_registered")
     module.CONST = Metric("const", "", False, "", lambda o, s, c: 7.0)
     monkeypatch.setitem(sys.modules, "tp_registered", module)
     eps = [EntryPoint("const", "tp_registered:CONST", "bench.metrics"),
            EntryPoint("gone", "tp_no_such_module:X", "bench.metrics")]
-    monkeypatch.setitem(bench.registry._cache, "metric", Registry("metric", eps))
+    monkeypatch.setitem(bench.core.registry._cache, "metric", Registry("metric", eps))
     monkeypatch.setenv("BENCH_CACHE", str(tmp_path / "cache"))
     ev = evaluate(_square(), _square(0.01), SMALL)
     assert ev.metrics["const"] == 7.0 and "d_rms" not in ev.metrics  # only what is registered
@@ -264,7 +264,7 @@ def test_in_the_record(run):
 
 @pytest.mark.slow
 def test_in_results_csv_after_the_built_in_columns(run):
-    from bench.harness.results import CSV_COLUMNS
+    from bench.records.results import CSV_COLUMNS
 
     root, record = run
     table = pd.read_csv(root / "out" / "results.csv")
@@ -325,7 +325,7 @@ def test_in_bench_check_with_its_direction(run, tmp_path):
 
 
 def test_a_metric_is_built_by_keyword_as_the_docs_show():
-    from bench.metric import Metric
+    from bench.core.metric import Metric
 
     def count(original, simplified, ctx):
         return simplified.n_faces

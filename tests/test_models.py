@@ -7,9 +7,9 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from bench.errors import UnknownNameError
-from bench.models import BUNNY, BUNNY_TEXTURED, TORUS, resolve_model
-from bench.models.torus import make_torus, torus_texture
+from bench.catalog import BUNNY, BUNNY_TEXTURED, TORUS, resolve_model
+from bench.catalog.torus import make_torus, torus_texture
+from bench.core.errors import UnknownNameError
 from conftest import write
 
 
@@ -23,7 +23,7 @@ def signed_volume(positions: np.ndarray, faces: np.ndarray) -> float:
 
 def edge_face_counts_by_position(positions: np.ndarray, faces: np.ndarray) -> Counter:
     """Faces per undirected edge, with vertices identified by their exact coordinates
-    (an independent weld, not bench.mesh's)."""
+    (an independent weld, not bench.core.mesh's)."""
     key = [tuple(p) for p in positions.tolist()]
     counts = Counter()
     for f in faces.tolist():

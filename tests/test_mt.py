@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from bench.mesh import Mesh
-from bench.models.torus import make_torus
+from bench.catalog.torus import make_torus
+from bench.core.mesh import Mesh
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh
 from methods.mt.dag import Cut, build_mt, from_log

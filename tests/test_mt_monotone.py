@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bench.models.torus import make_torus
+from bench.catalog.torus import make_torus
 from conftest import blob
 from methods.mt.bounds import preprocess
 from methods.mt.dag import build_mt

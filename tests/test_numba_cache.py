@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CODE = """
 import hashlib, numba
 import bench
-from bench.models.torus import make_torus
+from bench.catalog.torus import make_torus
 from methods.imaging import raster
 from metrics.views import silhouette_cameras
 mesh = make_torus(24, 16, texture_size=32)

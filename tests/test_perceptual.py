@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from bench.errors import ParamError
-from bench.mesh import Mesh
-from bench.method import parse_params
-from bench.models.torus import make_torus
+from bench.catalog.torus import make_torus
+from bench.core.errors import ParamError
+from bench.core.mesh import Mesh
+from bench.core.method import parse_params
 from methods.mt.bounds import (
     luminance_pyramid,
     node_footprints,
@@ -578,8 +578,8 @@ def test_protocol_needs_one_mesh_per_view():
 def test_runner_images_each_view_with_its_own_cut(tmp_path, monkeypatch):
     """End to end through the runner: a view-dependent method's record holds the
     per-view refinement statistics and metrics of the per-view images."""
-    from bench.harness.runner import Job, run_job
     from bench.io.meshio import save_mesh
+    from bench.run.runner import Job, run_job
     from metrics.protocol import Protocol
 
     monkeypatch.setenv("BENCH_CACHE", str(tmp_path / "cache"))

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from conftest import icosphere
 from methods.imaging.raster import face_id_buffers, rasterize_luminance
 from metrics.views import Camera, cameras_for, dodecahedron_directions, protocol_cameras
@@ -221,7 +221,7 @@ def _d_rms(a, b):
 @pytest.mark.parametrize("shading", ["flat", "gouraud"])
 def test_matches_evaluation_renderer_without_msaa(shading):
     render = pytest.importorskip("metrics.render")
-    from bench.models import BUNNY
+    from bench.catalog import BUNNY
     from metrics.image import luminance
 
     mesh = BUNNY.load()
@@ -242,7 +242,7 @@ def test_textured_matches_evaluation_renderer_where_textures_are_not_minified():
     sampling and the evaluation renderer's trilinear mipmaps agree (the procedural
     torus's fine 1024² texture, minified several times, does not: see the README)."""
     render = pytest.importorskip("metrics.render")
-    from bench.models import BUNNY_TEXTURED
+    from bench.catalog import BUNNY_TEXTURED
     from metrics.image import luminance
 
     mesh = BUNNY_TEXTURED.load()

@@ -10,7 +10,7 @@ from typing import Literal
 
 import pytest
 
-from bench.errors import (
+from bench.core.errors import (
     BenchError,
     InputError,
     ParamError,
@@ -18,8 +18,8 @@ from bench.errors import (
     UnavailableError,
     UnknownNameError,
 )
-from bench.method import parse_params, resolve_target, target_tolerance
-from bench.registry import Registry, registry, suggest
+from bench.core.method import parse_params, resolve_target, target_tolerance
+from bench.core.registry import Registry, registry, suggest
 
 PLUGINS = "bench_test_fake_plugins"
 
@@ -142,12 +142,12 @@ def test_a_broken_import_inside_an_installed_module_is_not_a_missing_install(tmp
     """A plug-in whose module is there but imports a name that is not (an old copy of a
     module it needs, a typo) is unavailable with the ImportError, not with a pip command
     for a package that is installed."""
-    (tmp_path / "half_edited_plugin.py").write_text("from bench.method import no_such_name\n")
+    (tmp_path / "half_edited_plugin.py").write_text("from bench.core.method import no_such_name\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     reg = Registry("method", eps=[ep("half", "half_edited_plugin:Thing")])
     problem = reg.entry("half").problem
     assert problem.startswith("failed to load half_edited_plugin:Thing: ImportError: cannot "
-                              "import name 'no_such_name' from 'bench.method'"), problem
+                              "import name 'no_such_name' from 'bench.core.method'"), problem
     assert "pip install" not in problem
 
 
@@ -199,8 +199,8 @@ def test_suggest():
     ("method", {"qslim": "methods.baselines:QSlim",
                 "qslim-texture": "methods.baselines:QSlimTexture",
                 "fast-simplification": "methods.baselines:FastSimplification"}),
-    ("model", {"bunny": "bench.models:BUNNY", "bunny-textured": "bench.models:BUNNY_TEXTURED",
-               "torus": "bench.models:TORUS"}),
+    ("model", {"bunny": "bench.catalog:BUNNY", "bunny-textured": "bench.catalog:BUNNY_TEXTURED",
+               "torus": "bench.catalog:TORUS"}),
     ("metric", {"faces": "metrics.topology:FACES",
                 "boundary_edges": "metrics.topology:BOUNDARY_EDGES"}),
 ])

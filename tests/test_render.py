@@ -16,7 +16,7 @@ import sys
 import numpy as np
 import pytest
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from conftest import icosphere
 from metrics.render import (
     BACKGROUND,
@@ -258,7 +258,7 @@ def test_module_level_render_uses_the_shared_renderer(sphere):
 
 @pytest.mark.slow
 def test_bunny_24_views_are_deterministic(renderer):
-    from bench.models import BUNNY
+    from bench.catalog import BUNNY
 
     bunny = BUNNY.load()
     cameras = protocol_cameras(bunny)
@@ -289,7 +289,7 @@ def test_importing_pyrender_first_without_egl_fails_clearly():
             "from metrics.views import cameras_for, dodecahedron_directions\n"
             "luminance(np.zeros((1, 3), np.uint8))  # importing still works\n"
             "points = np.eye(3)\n"
-            "from bench.mesh import Mesh\n"
+            "from bench.core.mesh import Mesh\n"
             "render(Mesh(points, [[0, 1, 2]]), cameras_for(points, dodecahedron_directions()))")
     result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                             text=True, timeout=120)

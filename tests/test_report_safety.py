@@ -17,10 +17,10 @@ from pathlib import Path
 
 import pytest
 
-from bench.errors import InputError
+from bench.core.errors import InputError
 from bench.harness.report import write_report
 from bench.harness.report_images import RunFiles, run_file
-from bench.harness.results import load_records, write_record, write_table
+from bench.records.results import load_records, write_record, write_table
 from conftest import made_up_record as record
 from conftest import without_own_scripts
 from metrics.protocol import Protocol
@@ -260,8 +260,8 @@ def test_any_damaged_field_is_refused_at_load_or_harmless_after(tmp_path):
     """Each field of a full record deleted or replaced by a value of another type: the
     record is refused in one line by load_record, or the table, the gate and the report
     all take it. Never a KeyError, TypeError or a formatting error."""
-    from bench.harness.check import compare, make_baseline
-    from bench.harness.results import load_record, records_table
+    from bench.records.check import compare, make_baseline
+    from bench.records.results import load_record, records_table
 
     base = record(artifacts=["images/a.png"], metric_errors={"flip": "boom"},
                   stop_reason=None, seconds={"render": 1.0}, mesh_file_error="too big",

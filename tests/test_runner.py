@@ -19,8 +19,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.harness.results import CSV_COLUMNS, SCHEMA_VERSION
 from bench.io.meshio import save_mesh
+from bench.records.results import CSV_COLUMNS, SCHEMA_VERSION
 from conftest import icosphere
 from metrics.protocol import PROTOCOL_VERSION
 

@@ -1,9 +1,9 @@
-"""Which job a free process of the local pool takes next (bench.harness.runner.next_job)."""
+"""Which job a free process of the local pool takes next (bench.run.runner.next_job)."""
 
 from collections import deque
 
-from bench.harness.jobs import Job
-from bench.harness.runner import next_job
+from bench.run.jobs import Job
+from bench.run.runner import next_job
 
 
 def _jobs(*specs):

@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from metrics import silhouette
 from metrics.silhouette import silhouette_counts, silhouette_histogram
 

@@ -15,10 +15,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import bootstrap
 
-from bench.cli import main
-from bench.harness.check import FAILING_MARKS, baseline_problem, compare, make_baseline
-from bench.harness.claims import Claim, evaluate_claim
-from bench.harness.results import (
+from bench.commands.cli import main
+from bench.records.check import FAILING_MARKS, baseline_problem, compare, make_baseline
+from bench.records.claims import Claim, evaluate_claim
+from bench.records.results import (
     SCHEMA_VERSION,
     interval_table,
     load_record,
@@ -26,7 +26,7 @@ from bench.harness.results import (
     write_record,
     write_table,
 )
-from bench.harness.stats import (
+from bench.records.stats import (
     SEED,
     compute_intervals,
     holm,
@@ -35,7 +35,7 @@ from bench.harness.stats import (
     record_intervals,
     sign_test,
 )
-from bench.harness.suites import SUITES
+from bench.records.suites import SUITES
 from conftest import made_up_record
 
 RNG = np.random.default_rng(46)
@@ -116,7 +116,7 @@ def test_an_old_record_without_intervals_still_reports_them(tmp_path):
 
 
 def test_a_record_of_the_next_schema_is_refused_and_bad_intervals_are_named(tmp_path):
-    from bench.errors import InputError
+    from bench.core.errors import InputError
 
     r = made_up_record("a", schema=SCHEMA_VERSION + 1)
     write_record(tmp_path / "r.json", r)
@@ -130,7 +130,7 @@ def test_a_record_of_the_next_schema_is_refused_and_bad_intervals_are_named(tmp_
 
 def test_the_summary_table_shows_the_interval_when_pointed_at():
     from bench.harness.report_table import summary_html
-    from bench.harness.results import records_table
+    from bench.records.results import records_table
 
     records = [_consistent(made_up_record("a"), VIEWS)]
     page = summary_html(records_table(records), records, {})

@@ -11,11 +11,11 @@ import math
 
 import pytest
 
-from bench.cli import build_parser
-from bench.harness.check import compare, make_baseline
-from bench.harness.results import CSV_COLUMNS, records_table, shading_label
-from bench.harness.runner import plan
-from bench.harness.suites import SUITES, Suite, evaluation_protocols, get_suite
+from bench.commands.cli import build_parser
+from bench.records.check import compare, make_baseline
+from bench.records.results import CSV_COLUMNS, records_table, shading_label
+from bench.records.suites import SUITES, Suite, evaluation_protocols, get_suite
+from bench.run.runner import plan
 from metrics.protocol import PROTOCOL_VERSION, Protocol
 
 FLAT, GOURAUD_SPEC = Protocol("flat"), Protocol("gouraud", specular=True)
@@ -116,9 +116,9 @@ def test_lt2000_suites_name_their_experiments():
 @pytest.mark.parametrize("name", sorted(SUITES))
 def test_suite_variants_are_valid_method_parameters(name):
     """What ``bench run --suite`` checks before any work starts, for every suite."""
-    from bench.harness.jobs import _fmt
-    from bench.method import parse_params
-    from bench.registry import registry
+    from bench.core.method import parse_params
+    from bench.core.registry import registry
+    from bench.run.jobs import _fmt
 
     for method, params in SUITES[name].variants or ():
         cls = registry("method").load(method)
@@ -142,8 +142,8 @@ def test_lt2000_shading_plans_each_variant_under_both_shadings():
 def test_bench_run_plans_a_suite_under_each_protocol(monkeypatch, tmp_path):
     """``bench run --suite`` hands the runner one job per protocol (execute replaced)."""
     import bench.commands.run as run_command
+    from bench.core.mesh import Mesh
     from bench.io.meshio import save_mesh
-    from bench.mesh import Mesh
     from conftest import TET_FACES, TET_POSITIONS
 
     model = str(tmp_path / "tet.obj")
@@ -293,7 +293,7 @@ def test_the_default_protocol_keeps_its_keys_and_labels():
 
 
 def test_records_under_the_two_settings_are_never_matched():
-    from bench.harness.claims import evaluate_claim
+    from bench.records.claims import evaluate_claim
 
     records = [_record("q", GOURAUD_SPEC, 5.0), _record("q", PAPER, 6.0)]
     entries = make_baseline(records)["entries"]
@@ -319,7 +319,7 @@ def test_records_under_the_two_settings_are_never_matched():
 
 
 def test_a_record_made_before_views_existed_is_read_as_the_24_views():
-    from bench.harness.results import record_problem
+    from bench.records.results import record_problem
 
     old = _record("q", GOURAUD_SPEC, 5.0)
     del old["job"]["protocol"]["views"]

@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bench.harness.jobs import use_threads
-from bench.harness.runner import default_threads, usable_cores
+from bench.run.jobs import use_threads
+from bench.run.runner import default_threads, usable_cores
 from conftest import blob
 
 CORES = usable_cores()
@@ -136,9 +136,9 @@ def test_an_error_in_the_first_pass_stops_every_thread(monkeypatch):
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
 @pytest.mark.parametrize("method", ["image-driven", "entropy-twin"])
 def test_one_and_two_threads_give_the_same_mesh_bit_for_bit(method, restore_threads):
-    from bench.method import run_method
-    from bench.models.torus import make_torus
-    from bench.registry import registry
+    from bench.catalog.torus import make_torus
+    from bench.core.method import run_method
+    from bench.core.registry import registry
 
     cls = registry("method").load(method)
     mesh = blob() if method == "image-driven" else make_torus(24, 16, texture_size=64)

@@ -30,7 +30,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from conftest import TET_FACES, TET_POSITIONS
 from metrics.topology import counts, crack_edges, seam_cracks
 

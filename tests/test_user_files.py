@@ -17,10 +17,10 @@ from hypothesis import strategies as st
 from PIL import Image
 from test_cli import assert_one_line_error, bench
 
-from bench.errors import InputError, MeshWarning, UnknownNameError
+from bench.catalog import parse_model_spec, resolve_model
+from bench.core.errors import InputError, MeshWarning, UnknownNameError
+from bench.core.mesh import Mesh
 from bench.io.meshio import _map_file, input_files, load_mesh, save_lods, save_mesh
-from bench.mesh import Mesh
-from bench.models import parse_model_spec, resolve_model
 from conftest import write
 
 WILD = Path(__file__).resolve().parents[2] / "shared" / "assets" / "wild"

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from bench.errors import InputError, MeshWarning
+from bench.core.errors import InputError, MeshWarning
+from bench.core.mesh import Mesh
 from bench.io.meshio import check_output_path, load_mesh, save_mesh
 from bench.io.validate import build_mesh
-from bench.mesh import Mesh
 from conftest import SEAM_FACES, SEAM_POSITIONS, SEAM_UV, TET_FACES, TET_POSITIONS, write
 
 TRIANGLE_V = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"

@@ -41,7 +41,7 @@ def _ndc(camera, points, aspect=1.0):
 
 @pytest.fixture(scope="module")
 def bunny():
-    from bench.models import BUNNY
+    from bench.catalog import BUNNY
 
     return BUNNY.load()
 

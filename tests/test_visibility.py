@@ -6,7 +6,7 @@ import math
 import numpy as np
 import trimesh
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from metrics.views import protocol_cameras
 from metrics.visibility import face_id_image, never_seen_share, seen_faces
 

@@ -1,6 +1,6 @@
-"""Warming a method up before it is timed (bench.harness.warmup)."""
+"""Warming a method up before it is timed (bench.run.warmup)."""
 
-from bench.harness import warmup
+from bench.run import warmup
 from methods.quadric import Quadric
 
 
@@ -23,7 +23,7 @@ def test_a_method_is_warmed_up_once_per_process():
 
 
 def test_a_method_that_does_not_warm_up_is_not_run(tmp_path):
-    from bench.method import Method
+    from bench.core.method import Method
 
     calls = []
 

@@ -19,7 +19,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.models.gamemodels import make_crate
+from bench.catalog.gamemodels import make_crate
 from methods.engine.collapse import _collapse
 from methods.engine.cost import _edge_quadric, _evaluate
 from methods.engine.loop import _check_candidate

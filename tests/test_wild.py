@@ -14,8 +14,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from bench.core.mesh import Mesh
 from bench.io.atlas import Part, face_materials, pack_materials
-from bench.mesh import Mesh
 from methods.engine import Policy, simplify_mesh
 from methods.engine.state import WEDGE_TARGETS_CAP
 from metrics.parts import parts_lost
@@ -25,7 +25,7 @@ ENGINE_METHODS = ("quadric", "memoryless", "canny-texture", "image-driven", "per
 
 
 def _assets():
-    from bench.harness.suites import assets_folder
+    from bench.records.suites import assets_folder
 
     return assets_folder() / "wild"
 
@@ -40,7 +40,7 @@ def asset(relative: str) -> str:
 
 def quiet_load(word: str) -> Mesh:
     """A model or file, its load warnings (non-manifold edges, dropped faces) allowed."""
-    from bench.models import resolve_model
+    from bench.catalog import resolve_model
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -154,7 +154,7 @@ def test_parts_lost_counts_components_their_area_and_materials():
 def test_a_part_shrunk_towards_a_neighbour_is_still_matched_to_itself():
     """A small box beside a large one, simplified to a slab whose centroids lie nearer
     the large box's face than its own: one to one, each result part has its own."""
-    from bench.models.wild import _box
+    from bench.catalog.wild import _box
 
     big_p, big_f, _ = _box((0, 0, 0), (4, 4, 4), 2)
     small_p, small_f, _ = _box((4.0, 1, 1), (4.6, 2, 2), 1)
@@ -220,7 +220,7 @@ def test_the_analogues_have_the_structure_they_claim():
 @st.composite
 def assemblies(draw):
     """Several parts (fans with a pole, boxes), each in one of up to three colours."""
-    from bench.models.wild import _box
+    from bench.catalog.wild import _box
 
     parts = []
     for i in range(draw(st.integers(1, 4))):
@@ -251,7 +251,7 @@ def test_engine_keeps_parts_and_materials_of_any_assembly(mesh, ratio, texture):
 # -- off target --------------------------------------------------------------------------
 
 def test_result_status_is_off_target_beyond_ten_percent():
-    from bench.harness.results import result_status
+    from bench.records.results import result_status
 
     assert result_status(110, 100) == "ok"
     assert result_status(90, 100) == "ok"
@@ -272,7 +272,7 @@ def test_an_off_target_result_is_never_marked_best():
 
 
 def test_target_distance_claims_read_off_target_records():
-    from bench.harness.claims import Claim, claim_rows
+    from bench.records.claims import Claim, claim_rows
 
     def record(status, faces):
         return {"status": status, "job": {"label": "quadric", "model": "m",
@@ -313,7 +313,7 @@ def test_a_run_marks_a_result_that_stops_short_off_target(tmp_path):
 
 
 def test_the_wild_suite_leaves_out_missing_assets_and_names_them(tmp_path, monkeypatch):
-    from bench.harness.suites import Suite
+    from bench.records.suites import Suite
 
     (tmp_path / "wild" / "a").mkdir(parents=True)
     (tmp_path / "wild" / "a" / "a.obj").write_text("v 0 0 0\n")

@@ -7,8 +7,8 @@ from __future__ import annotations
 import pytest
 from test_wild import ENGINE_METHODS, asset, quiet_load
 
+from bench.core.registry import registry
 from bench.io.atlas import face_materials
-from bench.registry import registry
 from metrics.parts import parts_lost
 
 pytestmark = pytest.mark.slow

@@ -7,9 +7,9 @@ import math
 import sys
 from pathlib import Path
 
-from bench.errors import InputError
-from bench.harness.check import load_run, make_baseline
+from bench.core.errors import InputError
 from bench.io.atomic import write_atomic
+from bench.records.check import load_run, make_baseline
 
 
 def add_parser(sub, name: str) -> None:

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from bench.commands import one_line, stdout_closed
-from bench.harness.check import (
+from bench.records.check import (
     FAILING_MARKS,
     Row,
     check_tolerance,

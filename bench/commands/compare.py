@@ -10,7 +10,7 @@ The views are not independent draws: a verdict says whether one method is better
 consistently across the viewpoints of that model at that budget, and the sign test,
 whether it is across the models and budgets of the run (with four rows or fewer it
 cannot be significant). ``no test`` marks a row whose records have no per-view values
-of the metric (see :mod:`bench.harness.stats`). ``--format markdown`` prints the table
+of the metric (see :mod:`bench.records.stats`). ``--format markdown`` prints the table
 for a pull-request comment, ``--format json`` as objects; the sign test line goes to
 standard error in every format.
 """
@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 from bench.commands import one_line
-from bench.errors import InputError
+from bench.core.errors import InputError
 
 FORMATS = ("text", "markdown", "json")
 COLUMNS = ("model", "target_faces", "shading", "a_value", "b_value", "median_difference",
@@ -44,7 +44,7 @@ def add_parser(sub, name: str) -> None:
 
 
 def run(args) -> int:
-    from bench.harness.results import load_records
+    from bench.records.results import load_records
 
     a, b = _methods(args.methods)
     records = load_records(Path(args.run_dir))
@@ -71,10 +71,10 @@ def compare_methods(records: list[dict], a: str, b: str, metric: str = "d_rms"
                     ) -> tuple[list[dict], dict]:
     """The rows of the comparison of ``a`` with ``b`` on ``metric`` (the module's
     docstring) and the sign test over them, as plain data."""
-    from bench.harness.check import metric_info
-    from bench.harness.jobs import canonical_label
-    from bench.harness.results import OK, shading_label
-    from bench.harness.stats import ALPHA, consistent_views, holm, paired, sign_test
+    from bench.records.check import metric_info
+    from bench.records.results import OK, shading_label
+    from bench.records.stats import ALPHA, consistent_views, holm, paired, sign_test
+    from bench.run.jobs import canonical_label
 
     unit, higher = metric_info().get(metric, ("", None))
     if higher is None:

@@ -10,7 +10,7 @@ import os
 import sys
 from pathlib import Path
 
-from bench.errors import InputError
+from bench.core.errors import InputError
 
 #: The metrics drawn unless ``--metrics`` says otherwise.
 DEFAULT_METRICS = ("d_rms", "flip", "ssim", "hausdorff_mean")
@@ -32,9 +32,9 @@ def add_parser(sub, name: str) -> None:
 
 
 def run(args) -> int:
-    from bench.harness.check import check_tolerance, load_baseline, metric_info
-    from bench.harness.history import load_history, write_history
-    from bench.registry import suggest
+    from bench.core.registry import suggest
+    from bench.records.check import check_tolerance, load_baseline, metric_info
+    from bench.records.history import load_history, write_history
 
     tolerance = check_tolerance(args.tolerance)
     known = metric_info()

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import warnings
 
-from bench.registry import registry
+from bench.core.registry import registry
 
 KINDS = {"methods": "method", "models": "model", "metrics": "metric"}
 
@@ -37,14 +37,14 @@ def run(args) -> int:
 
 
 def _suite_rows() -> list[dict]:
-    from bench.harness.suites import SUITES
+    from bench.records.suites import SUITES
 
     return [{"name": s.name, "models": ",".join(s.models), "claims": len(s.claims),
              "detail": s.description} for s in SUITES.values()]
 
 
 def _claim_rows() -> list[dict]:
-    from bench.harness.suites import SUITES
+    from bench.records.suites import SUITES
 
     return [{"name": c.name, "suite": c.suite, "source": c.source, "test": c.test,
              "class by": claim_class_test(c), "paper": c.paper or "qualitative",
@@ -53,10 +53,10 @@ def _claim_rows() -> list[dict]:
 
 
 def claim_class_test(claim) -> str:
-    """How ``claim``'s class is decided (:mod:`bench.harness.claims`): a paired test
+    """How ``claim``'s class is decided (:mod:`bench.records.claims`): a paired test
     over the views, an interval over the views, or no test when its metric has no
     per-view values (a metric registered as needing the images has them)."""
-    from bench.registry import registry
+    from bench.core.registry import registry
 
     metrics = registry("metric")
     per_view = False

@@ -6,7 +6,7 @@ every claim from the records, and write ``DIR/claims.csv`` and a Reproduction pa
 Each claim has a verdict (how many of its rows pass) and a class (whether the
 difference is significant over the views: ``holds``, ``holds, not significant``, ``does
 not hold``, ``contradicted``, or ``no test`` without per-view values), with the deciding
-p-value after Holm's correction over its rows (:mod:`bench.harness.claims`)."""
+p-value after Holm's correction over its rows (:mod:`bench.records.claims`)."""
 
 from __future__ import annotations
 
@@ -16,10 +16,10 @@ import sys
 import time
 from pathlib import Path
 
-from bench.errors import InputError, UnknownNameError
-from bench.harness.claims import evaluate_claim
-from bench.harness.suites import SUITES
-from bench.registry import suggest
+from bench.core.errors import InputError, UnknownNameError
+from bench.core.registry import suggest
+from bench.records.claims import evaluate_claim
+from bench.records.suites import SUITES
 
 #: Columns of claims.csv, in order.
 CSV_COLUMNS = ["claim", "suite", "source", "statement", "metric", "method", "against",
@@ -62,7 +62,7 @@ def selected(text: str | None) -> list:
 def run(args) -> int:
     from bench.commands import one_line
     from bench.commands import run as run_cmd
-    from bench.harness.results import load_records
+    from bench.records.results import load_records
 
     claims = selected(args.claims)
     out = Path(args.out)

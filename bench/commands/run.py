@@ -10,9 +10,13 @@ import sys
 from datetime import datetime
 from pathlib import Path
 
-from bench.errors import InputError
-from bench.harness.results import OFF_TARGET, OFF_TARGET_STATUS
-from bench.harness.runner import (
+from bench.catalog import resolve_model
+from bench.core.errors import InputError
+from bench.core.method import canonical_params, resolve_target
+from bench.core.registry import registry
+from bench.records.results import OFF_TARGET, OFF_TARGET_STATUS
+from bench.records.suites import evaluation_protocols, get_suite
+from bench.run.runner import (
     EXECUTORS,
     default_threads,
     execute,
@@ -21,10 +25,6 @@ from bench.harness.runner import (
     remaining,
     usable_cores,
 )
-from bench.harness.suites import evaluation_protocols, get_suite
-from bench.method import canonical_params, resolve_target
-from bench.models import resolve_model
-from bench.registry import registry
 from metrics.protocol import Protocol
 
 DEFAULT_RATIOS = (0.02, 0.01)
@@ -267,8 +267,8 @@ def finish(out: Path, build_report: bool = True, single_file: bool = False) -> i
     import warnings
 
     from bench.commands import one_line
-    from bench.errors import RecordWarning
-    from bench.harness.results import load_records, records_table, write_table
+    from bench.core.errors import RecordWarning
+    from bench.records.results import load_records, records_table, write_table
 
     skipped = []
     records = load_records(out, skipped=skipped)

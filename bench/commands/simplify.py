@@ -27,7 +27,10 @@ import sys
 import time
 from pathlib import Path
 
-from bench.errors import InputError
+from bench.catalog import parse_model_spec, resolve_model
+from bench.core.errors import InputError
+from bench.core.method import parse_params, resolve_target, run_method
+from bench.core.registry import registry
 from bench.io.meshio import (
     SCENE_FORMATS,
     check_not_inputs,
@@ -37,9 +40,6 @@ from bench.io.meshio import (
     save_lods,
     save_mesh,
 )
-from bench.method import parse_params, resolve_target, run_method
-from bench.models import parse_model_spec, resolve_model
-from bench.registry import registry
 
 
 def add_parser(sub, name: str) -> None:
@@ -91,7 +91,7 @@ def parse_levels(text: str, flag: str, kind: type) -> list:
 
 def run(args) -> int:
     from bench.commands.run import whole_number
-    from bench.harness.jobs import use_threads
+    from bench.run.jobs import use_threads
 
     if args.threads is not None:
         use_threads(whole_number(args.threads, "--threads"))
@@ -129,8 +129,8 @@ def run(args) -> int:
 
 def run_chain(args, method_cls, params, faces, ratios) -> int:
     """Write the LOD chain of ``bench simplify`` with several levels (module docstring)."""
-    from bench.harness.lods import build_levels, level_name, level_targets, sidecar, sidecar_path
-    from bench.harness.results import write_record
+    from bench.records.results import write_record
+    from bench.run.lods import build_levels, level_name, level_targets, sidecar, sidecar_path
     from metrics.protocol import Protocol
 
     out = Path(args.output)

@@ -9,8 +9,8 @@ from __future__ import annotations
 import sys
 import time
 
-from bench.errors import InputError
-from bench.registry import registry
+from bench.core.errors import InputError
+from bench.core.registry import registry
 
 
 def add_parser(sub, name: str) -> None:
@@ -23,7 +23,7 @@ def add_parser(sub, name: str) -> None:
 def run(args) -> int:
     from tqdm import tqdm
 
-    from bench.harness.warmup import warm_up
+    from bench.run.warmup import warm_up
 
     methods = registry("method")
     names = [n.strip() for n in args.methods.split(",") if n.strip()] or [

@@ -1,1 +1,1 @@
-"""The run harness."""
+"""The HTML report."""

@@ -17,12 +17,12 @@ disk with no server and can be zipped or published as it is; ``single_file=True`
 
 A run folder may come from someone else, so nothing in it is trusted: every string from
 a record is HTML-escaped where it is written, only records that pass
-:func:`~bench.harness.results.record_problem` are shown, and images are read only from
+:func:`~bench.records.results.record_problem` are shown, and images are read only from
 inside the run folder and only when they are PNG files
 (:func:`~bench.harness.report_images.run_png`), meshes likewise and only as whole,
 self-contained GLB files (:func:`~bench.harness.report_viewer.run_glb`). What is left
 out for any of these reasons is listed under "Warnings" at the top of the report and
-given as a :class:`~bench.errors.RecordWarning`.
+given as a :class:`~bench.core.errors.RecordWarning`.
 """
 
 from __future__ import annotations
@@ -37,14 +37,15 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.errors import RecordWarning
+from bench.core.errors import RecordWarning
 from bench.harness.report_grid import GRID_SCRIPT, comparison_grids, grid_links
 from bench.harness.report_images import Inline, RunFiles, Shown, difference_png, run_png
 from bench.harness.report_table import SCRIPT, summary_html
 from bench.harness.report_table import cell as _cell
 from bench.harness.report_table import esc as _esc
 from bench.harness.report_viewer import VIEWER_SCRIPT, Viewers, single_file_note
-from bench.harness.results import (
+from bench.io.atomic import write_atomic
+from bench.records.results import (
     EVALUATED,
     OFF_TARGET_STATUS,
     evaluated,
@@ -53,7 +54,6 @@ from bench.harness.results import (
     records_table,
     shading_label,
 )
-from bench.io.atomic import write_atomic
 
 __all__ = ["ERRORS_SCRIPT", "PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_page",
            "plot_text", "pyplot", "write_report"]
@@ -465,9 +465,9 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out, images:
 def sheet_images(run_dir: Path, record: dict, refused: list[str], out) -> list[dict]:
     """A job's sheet views as shown (``original``, ``result``, ``difference``: a
     :class:`Shown` or None each) with the view's ``d_rms`` (None when the record has
-    none), in :data:`~bench.harness.jobs.SHEET_VIEWS` order (every view of a smaller
+    none), in :data:`~bench.run.jobs.SHEET_VIEWS` order (every view of a smaller
     view set, ``Protocol.views``); ``view`` is the view's index."""
-    from bench.harness.jobs import sheet_views
+    from bench.run.jobs import sheet_views
     from metrics.views import VIEW_SET_SIZES
 
     key, original = _image_folders(run_dir, record)
@@ -500,8 +500,8 @@ def _sheet_figures(record: dict, views: list[dict]) -> list[str]:
 def _image_folders(run_dir: Path, record: dict) -> tuple[str, str | None]:
     """The job key the record's views are filed under (an older run's where the record
     has no key) and the folder of its original's views (None without a model hash)."""
-    from bench.harness.jobs import Job
-    from bench.harness.keys import legacy_job_key
+    from bench.run.jobs import Job
+    from bench.run.keys import legacy_job_key
     from metrics.protocol import Protocol
 
     job = record["job"]

@@ -16,11 +16,11 @@ import math
 from pathlib import Path
 from urllib.parse import quote
 
-from bench.harness.claims import ClaimResult
 from bench.harness.report import figure, html_page, pyplot
 from bench.harness.report_images import RunFiles, run_png
 from bench.harness.report_table import esc
 from bench.io.atomic import write_atomic
+from bench.records.claims import ClaimResult
 
 __all__ = ["write_reproduction"]
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 from bench.harness.report_table import esc
-from bench.harness.results import evaluated, shading_label
+from bench.records.results import evaluated, shading_label
 
 __all__ = ["GRID_SCRIPT", "comparison_grids"]
 

@@ -2,11 +2,11 @@
 
 One row per record: failed and skipped jobs first, with the first line of their error
 as the reason; numbers right-aligned, each column's unit and direction (from the
-metric's registration, :class:`bench.metric.Metric`) in a second header row; in each
+metric's registration, :class:`bench.core.metric.Metric`) in a second header row; in each
 group of ok jobs of one model, budget and evaluation shading, the best value of each
 metric that has a direction is marked. A value with per-view values carries its 95 %
 bootstrap interval over the views as the cell's tooltip
-(:func:`bench.harness.stats.record_intervals`). Every string from a record is HTML-escaped.
+(:func:`bench.records.stats.record_intervals`). Every string from a record is HTML-escaped.
 
 The script (:data:`SCRIPT`) is the page's only one and needs no network: a click on a
 header sorts the rows by that column (numbers as numbers, empty cells last; a second
@@ -20,8 +20,8 @@ import html
 
 import numpy as np
 
-from bench.harness.check import metric_info
-from bench.harness.results import OFF_TARGET_STATUS
+from bench.records.check import metric_info
+from bench.records.results import OFF_TARGET_STATUS
 
 __all__ = ["SCRIPT", "cell", "esc", "summary_html"]
 
@@ -92,7 +92,7 @@ def cell(value) -> str:
 
 
 def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
-    """The summary table of ``table`` (:func:`~bench.harness.results.records_table` of
+    """The summary table of ``table`` (:func:`~bench.records.results.records_table` of
     ``records``, row i from ``records[i]``), each model name linking to ``links[model]``,
     with the filter box and a note on how to read it."""
     reasons = [_reason(r) for r in records]
@@ -100,8 +100,8 @@ def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
     metrics = metric_info()
     best = _best_cells(table, {c: up for c, (_, up) in metrics.items()
                                if c in table.columns and up is not None})
-    from bench.harness.results import evaluated
-    from bench.harness.stats import record_intervals
+    from bench.records.results import evaluated
+    from bench.records.stats import record_intervals
 
     intervals = [record_intervals(r) if evaluated(r) else {} for r in records]
     rows = [_row(table.iloc[i], i, reasons[i], columns, best, links, intervals[i])

@@ -1,5 +1,5 @@
 """The report's 3D view: per model, the original and any LOD side by side, orbited with
-one shared camera, from the GLB files the run wrote (:func:`bench.harness.jobs.mesh_paths`).
+one shared camera, from the GLB files the run wrote (:func:`bench.run.jobs.mesh_paths`).
 
 It opens from disk (``file://``) with no server and no network. Chromium loads neither
 ES modules nor ``fetch``/XHR of ``file://`` URLs from a ``file://`` page, but it runs
@@ -53,7 +53,7 @@ from typing import NamedTuple
 
 from bench.harness.report_images import run_file
 from bench.harness.report_table import esc
-from bench.harness.results import evaluated
+from bench.records.results import evaluated
 
 __all__ = ["MAX_MESH_BYTES", "VIEWER_SCRIPT", "Glb", "Viewers", "run_glb", "single_file_note",
            "wrapper_path"]
@@ -214,8 +214,8 @@ class Viewers:
         """The 3D view of one model's ``records`` (its ok jobs, each with its original;
         ``keys`` maps ``id(record)`` to the job key its files are named after), or a note
         saying why there is none. ``slug`` is the model's part of file names and ids."""
-        from bench.harness.jobs import mesh_paths
-        from bench.harness.results import shading_label
+        from bench.records.results import shading_label
+        from bench.run.jobs import mesh_paths
 
         ok = [r for r in records if evaluated(r) and id(r) in keys]
         if not ok:

@@ -1,6 +1,6 @@
 """Several materials in one mesh: a texture atlas built at load time.
 
-A :class:`~bench.mesh.Mesh` has one texture image, which is what every method and the
+A :class:`~bench.core.mesh.Mesh` has one texture image, which is what every method and the
 renderers understand. An asset as engines ship it has several materials (an OBJ's
 ``usemtl`` groups, a glTF mesh's primitives), each with its own texture or only a
 colour. :func:`pack_materials` turns such parts into one mesh:
@@ -45,9 +45,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.errors import InputError
+from bench.core.errors import InputError
+from bench.core.mesh import Mesh
 from bench.io.validate import build_mesh, warn
-from bench.mesh import Mesh
 
 __all__ = [
     "GUTTER",

@@ -25,7 +25,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from bench.errors import InputError
+from bench.core.errors import InputError
 
 __all__ = ["dense_gltf"]
 

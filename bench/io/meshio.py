@@ -50,11 +50,11 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.errors import InputError
+from bench.core.errors import InputError
+from bench.core.mesh import Mesh
 from bench.io.atlas import split_materials
 from bench.io.atomic import write_atomic
 from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
-from bench.mesh import Mesh
 
 __all__ = ["FORMATS", "SCENE_FORMATS", "apply_texture", "check_not_inputs", "check_output_path",
            "glb_bytes", "input_files", "load_mesh", "lod_path", "save_lods", "save_mesh"]
@@ -283,7 +283,7 @@ def _check_storable(mesh: Mesh, path: Path, source: str) -> None:
     become infinite (beyond 3.4e38 in 32-bit floats) or every face would collapse to
     zero area (coordinates too small for the format's precision); a warning with the
     count when some faces would. Ordinary meshes pass."""
-    from bench.mesh import face_normals
+    from bench.core.mesh import face_normals
 
     _check_finite(mesh, source)
     ext = path.suffix.lower()

@@ -1,8 +1,8 @@
 """Checks and cleaning for mesh data from outside the suite.
 
-Every failure is an :class:`~bench.errors.InputError` whose one-line message starts
+Every failure is an :class:`~bench.core.errors.InputError` whose one-line message starts
 with the source (usually a file name) and says what is wrong and what to do; every
-repair is a :class:`~bench.errors.MeshWarning` that says what was changed.
+repair is a :class:`~bench.core.errors.MeshWarning` that says what was changed.
 
 =========================  ===============================================
 problem                    outcome
@@ -30,8 +30,8 @@ import warnings
 
 import numpy as np
 
-from bench.errors import InputError, MeshWarning
-from bench.mesh import Mesh
+from bench.core.errors import InputError, MeshWarning
+from bench.core.mesh import Mesh
 
 __all__ = ["UV_LIMIT", "build_mesh", "check_uv", "warn"]
 

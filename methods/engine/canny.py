@@ -41,7 +41,7 @@ import numpy as np
 import scipy.ndimage as ndi
 from numba import njit
 
-from bench.mesh import Mesh, face_areas
+from bench.core.mesh import Mesh, face_areas
 from metrics.shading import luminance
 
 __all__ = [

@@ -108,7 +108,7 @@ def _worker_state(scratch, images):
 def first_costs(mesh, rules, terms, scratch, images, threads: int | None = None):
     """Every edge the loop starts from, costed: (edges (e, 2), costs (e,), kept ends
     (e,), placements (e, 3)), identical for any ``threads`` (default: numba's thread
-    count, which :func:`bench.harness.jobs.use_threads` sets per job)."""
+    count, which :func:`bench.run.jobs.use_threads` sets per job)."""
     edges = candidate_edges(mesh, scratch)
     n = len(edges)
     costs, keeps, places = np.empty(n), np.empty(n, np.int64), np.empty((n, 3))

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 
 #: Placement codes, as the numba kernels see them.
 PLACE_OPTIMAL = 0

@@ -8,7 +8,7 @@ import math
 import numpy as np
 from numba import njit
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 
 
 @njit(cache=True)

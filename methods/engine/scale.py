@@ -14,7 +14,7 @@ import functools
 
 import numpy as np
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 
 #: Coordinates up to 2^LIMIT in magnitude (and down to 2^-LIMIT) are used as they are.
 LIMIT = 60

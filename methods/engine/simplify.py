@@ -8,8 +8,8 @@ from collections import namedtuple
 
 import numpy as np
 
+from bench.core.mesh import Mesh
 from bench.io.atlas import face_materials, wedge_tiles
-from bench.mesh import Mesh
 from methods.engine.initial import edge_areas, first_costs
 from methods.engine.loop import _run
 from methods.engine.parts import face_groups

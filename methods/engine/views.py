@@ -63,7 +63,7 @@ def helper_state(images):
 @contextmanager
 def views_shared(mesh, rules, scratch, images, threads: int | None = None):
     """Run the loop inside this with ``threads - 1`` helpers (default numba's thread
-    count, which :func:`bench.harness.jobs.use_threads` sets per job) taking views of
+    count, which :func:`bench.run.jobs.use_threads` sets per job) taking views of
     its evaluations and commits, when the costs are rendered; otherwise none. On exit
     the helpers stop, their counters are added to the image state's, and the first
     error a helper met is raised."""

@@ -666,7 +666,7 @@ def face_id_buffers(mesh, cameras, width: int = 256, height: int = 256,
 
     Parameters
     ----------
-    mesh : bench.mesh.Mesh
+    mesh : bench.core.mesh.Mesh
         Positions (n, 3) and faces (m, 3) are used.
     cameras : sequence of V metrics.views.Camera
     width, height : int
@@ -692,7 +692,7 @@ def rasterize_luminance(mesh, cameras, width: int = 256, height: int = 256,
 
     Parameters
     ----------
-    mesh : bench.mesh.Mesh
+    mesh : bench.core.mesh.Mesh
         Positions (n, 3), faces (m, 3); ``vertex_normals`` for gouraud; ``uv`` (n, 2)
         and ``texture`` (h, w, 3|4) uint8 for the albedo when both are present.
     cameras : sequence of V metrics.views.Camera

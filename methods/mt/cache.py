@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 from methods.mt.bounds import NodeBounds, preprocess
 from methods.mt.dag import MultiTriangulation, build_mt
 

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from bench.mesh import Mesh, compact
+from bench.core.mesh import Mesh, compact
 
 __all__ = ["Cut", "MultiTriangulation", "build_mt", "from_log"]
 

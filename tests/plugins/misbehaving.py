@@ -1,13 +1,13 @@
 """Methods that fail in every way a plug-in can, for the runner's isolation tests.
 
-Loaded through ``BENCH_PLUGINS`` (see bench.registry) with this folder on PYTHONPATH.
+Loaded through ``BENCH_PLUGINS`` (see bench.core.registry) with this folder on PYTHONPATH.
 """
 
 import os
 import time
 from dataclasses import dataclass
 
-from bench.method import Method
+from bench.core.method import Method
 
 
 class Crash(Method):
@@ -54,7 +54,7 @@ class Sleep(Method):
         once: bool = False
 
     def simplify(self, mesh, target_faces, ctx=None):
-        from bench.method import SimplifyResult
+        from bench.core.method import SimplifyResult
 
         first = True
         if self.params.marker:
@@ -94,7 +94,7 @@ class KillSelf(Method):
     def simplify(self, mesh, target_faces, ctx=None):
         import signal
 
-        from bench.method import SimplifyResult
+        from bench.core.method import SimplifyResult
 
         if not os.path.exists(self.params.marker):
             with open(self.params.marker, "w") as f:

@@ -6,9 +6,9 @@ import pytest
 from bench_example.area import AREA_CHANGE, area_change
 from bench_example.clustering import VertexClustering, cluster
 
-from bench.mesh import Mesh
-from bench.method import run_method
-from bench.registry import registry
+from bench.core.mesh import Mesh
+from bench.core.method import run_method
+from bench.core.registry import registry
 
 
 def grid(n: int, uv: bool = False) -> Mesh:
@@ -77,7 +77,7 @@ def test_registered_through_its_entry_point(kind, name):
 
 
 def test_a_grid_of_one_cell_is_refused_by_the_declared_range():
-    from bench.errors import ParamError
+    from bench.core.errors import ParamError
 
     with pytest.raises(ParamError, match="max_cells"):
         VertexClustering(max_cells=1)

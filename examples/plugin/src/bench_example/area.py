@@ -7,8 +7,8 @@ is better, so ``bench check`` gates it like the built-in errors.
 
 from __future__ import annotations
 
-from bench.mesh import Mesh, face_areas
-from bench.metric import Metric
+from bench.core.mesh import Mesh, face_areas
+from bench.core.metric import Metric
 
 __all__ = ["AREA_CHANGE", "area_change"]
 

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult, bounded
+from bench.core.mesh import Mesh
+from bench.core.method import Method, SimplifyResult, bounded
 
 __all__ = ["VertexClustering", "cluster"]
 

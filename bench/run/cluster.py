@@ -1,14 +1,14 @@
 """The Dask executor: ``bench run --executor dask`` runs the plan on a Dask cluster.
 
 It only runs jobs; planning, the records, ``--resume`` and the report are the same
-code as with the local pool (:mod:`bench.harness.runner`). The cluster is a running
+code as with the local pool (:mod:`bench.run.runner`). The cluster is a running
 ``dask scheduler`` at ``--scheduler ADDRESS`` with its ``dask worker`` processes, or,
 without an address, a ``distributed.LocalCluster`` of ``--jobs`` worker processes here.
 
 How a job runs on a worker
-    The task (:func:`bench.harness.dask_worker.run_on_worker`) hands the job to a :class:`~bench.harness.jobs.
+    The task (:func:`bench.run.dask_worker.run_on_worker`) hands the job to a :class:`~bench.run.jobs.
     JobProcess` that the worker keeps, one per worker thread, created lazily by the
-    thread that first needs it and held by a worker plugin (:class:`~bench.harness.dask_worker.JobProcesses`) that
+    thread that first needs it and held by a worker plugin (:class:`~bench.run.dask_worker.JobProcesses`) that
     ends them when the worker closes. The job process is where the per-worker state
     lives: the evaluation renderer (one EGL context, made in the process's only
     thread — an OpenGL context belongs to one thread), the loaded libraries and the
@@ -38,7 +38,7 @@ Lost workers
 
 Results come back to the client
     Workers need not see the run folder: a task returns the job's record and its image
-    files as bytes, and the client writes them (:func:`bench.harness.jobs.
+    files as bytes, and the client writes them (:func:`bench.run.jobs.
     store_result`). A model given as a file is loaded here and shipped with its jobs.
 
 Flow control
@@ -57,8 +57,8 @@ from collections import deque
 from collections.abc import Callable
 from typing import Self
 
-from bench.errors import ClusterError
-from bench.harness.jobs import Job, JobResult, failed_result
+from bench.core.errors import ClusterError
+from bench.run.jobs import Job, JobResult, failed_result
 
 __all__ = ["CONNECT_TIMEOUT", "LOST_WORKER_RETRIES", "DaskExecutor"]
 
@@ -92,7 +92,7 @@ class DaskExecutor:
 
     def __enter__(self) -> Self:
         distributed = _distributed()
-        from bench.harness.dask_worker import PLUGIN, JobProcesses  # needs distributed
+        from bench.run.dask_worker import PLUGIN, JobProcesses  # needs distributed
 
         if self.scheduler:
             try:
@@ -110,7 +110,7 @@ class DaskExecutor:
                 self.cluster = distributed.LocalCluster(
                     n_workers=self.workers, threads_per_worker=1, processes=True,
                     dashboard_address=":0", silence_logs=logging.ERROR,
-                    preload=["bench.harness.dask_worker"])  # Ctrl-C: the client's alone
+                    preload=["bench.run.dask_worker"])  # Ctrl-C: the client's alone
             self.client = distributed.Client(self.cluster)
         try:
             self.client.register_plugin(JobProcesses(), name=PLUGIN)
@@ -143,7 +143,7 @@ class DaskExecutor:
     def run(self, jobs: list[Job], timeout: float, done: Callable[[JobResult], None]) -> None:
         """Submit ``jobs`` as worker threads free up and hand each result to ``done``."""
         distributed = _distributed()
-        from bench.harness.dask_worker import run_on_worker
+        from bench.run.dask_worker import run_on_worker
 
         pending = deque(jobs)
         running: dict = {}  # future -> job
@@ -184,8 +184,8 @@ class DaskExecutor:
     def _mesh(job: Job, meshes: dict):
         """The mesh of a model given as a file, loaded here (workers may not see this
         disk); None for a registered model, which each worker builds itself."""
-        from bench.models import resolve_model
-        from bench.registry import registry
+        from bench.catalog import resolve_model
+        from bench.core.registry import registry
 
         if job.model in registry("model"):
             return None

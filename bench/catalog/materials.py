@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.core.mesh import Mesh
 from bench.io.atlas import Part, pack_materials
-from bench.mesh import Mesh
 
 __all__ = ["bricks_texture", "make_two_materials", "two_material_parts", "waves_texture"]
 
@@ -99,4 +99,4 @@ def make_two_materials(around: int = 64, rows: int = 16) -> Mesh:
     (``metadata["atlas"]``), faces of material 0 first."""
     return pack_materials(two_material_parts(around, rows), source="two-materials",
                           name="two-materials",
-                          metadata={"source": "procedural (bench.models.materials)"})
+                          metadata={"source": "procedural (bench.catalog.materials)"})

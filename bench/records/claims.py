@@ -1,7 +1,7 @@
 """The papers' claims as data, and their verdicts from a run's records.
 
 A :class:`Claim` is a declarative entry kept with the suite that tests it
-(:mod:`bench.harness.suites`): what the paper says, where, which metric decides it, and
+(:mod:`bench.records.suites`): what the paper says, where, which metric decides it, and
 how — the ratio of one method variant's value to another's, or one variant's value on
 its own — with our threshold and the paper's own figure where it gives one.
 :func:`evaluate_claim` reads only records (never a number typed in): every (model,
@@ -21,20 +21,20 @@ verdict                when
 =====================  ==================================================================
 
 The verdict counts rows; the **class** (:data:`CLASSES`) asks whether the difference is
-real, from the per-view values of the records (:mod:`bench.harness.stats`, whose limits
+real, from the per-view values of the records (:mod:`bench.records.stats`, whose limits
 apply: views are not independent draws, and a test over them asks whether a method is
 better consistently across viewpoints of one model at one budget):
 
 * A ratio claim ("A beats B", with ``against``): in every row, the Wilcoxon signed-rank
   test of A's per-view values against the threshold times B's (for a threshold of 1,
   the plain paired differences), Holm-corrected over the claim's rows (its table).
-  ``holds``: every row significant (corrected p < :data:`~bench.harness.stats.ALPHA`)
+  ``holds``: every row significant (corrected p < :data:`~bench.records.stats.ALPHA`)
   in the claimed direction; ``contradicted``: some row significant the other way;
   ``holds, not significant``: every row passes but not every one significantly;
   ``does not hold``: the rest. Its p-value is the deciding one (the largest corrected
   p of the rows; when contradicted, the smallest of the contradicting rows), its
   effect the median per-view ratio A / B over every row's views, and a sign test over
-  the rows (:func:`~bench.harness.stats.sign_test`) is given beside it.
+  the rows (:func:`~bench.records.stats.sign_test`) is given beside it.
 * A threshold claim (a value on its own): in every row, the 95 % bootstrap interval of
   the value over the views, and where it lies: wholly ``above`` or ``below`` the
   threshold, or ``across`` it. ``holds``: every interval wholly on the passing side;
@@ -166,7 +166,7 @@ class ClaimResult:
 
 
 def _shading(record: dict) -> str:
-    from bench.harness.results import shading_label
+    from bench.records.results import shading_label
 
     return shading_label(record["job"]["protocol"])
 
@@ -201,13 +201,13 @@ def _value(record: dict, metric: str) -> float:
 def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
     """The evidence of ``claim`` in ``records``: one row per (model, budget, shading)
     where the claim's records exist and are ``ok``, sorted."""
-    from bench.harness.jobs import canonical_label
+    from bench.run.jobs import canonical_label
 
     wanted = {canonical_label(claim.method): "method"}
     if claim.against:
         wanted[canonical_label(claim.against)] = "against"
     cells: dict[tuple, dict] = {}
-    from bench.harness.results import EVALUATED, OK
+    from bench.records.results import EVALUATED, OK
 
     statuses = EVALUATED if claim.metric in ANY_TARGET else (OK,)
     for r in records:
@@ -247,13 +247,13 @@ def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
 def _views(record: dict, metric: str) -> list[float] | None:
     """``record``'s per-view values of ``metric``, or None when it has none or they do
     not make its reported value (then a test of them would be of something else)."""
-    from bench.harness.stats import consistent_views
+    from bench.records.stats import consistent_views
 
     return consistent_views(record, metric)
 
 
 def _interval(record: dict, metric: str) -> list[float] | None:
-    from bench.harness.stats import record_intervals
+    from bench.records.stats import record_intervals
 
     return record_intervals(record).get(metric)
 
@@ -290,7 +290,7 @@ def _classify(result: ClaimResult) -> None:
 def _classify_ratio(result: ClaimResult, threshold: float) -> None:
     import numpy as np
 
-    from bench.harness.stats import ALPHA, holm, paired, sign_test
+    from bench.records.stats import ALPHA, holm, paired, sign_test
 
     claim, rows = result.claim, result.rows
     if any(r["method_views"] is None or r["against_views"] is None or

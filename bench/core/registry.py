@@ -27,7 +27,7 @@ import os
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
 
-from bench.errors import RegistryError, UnavailableError, UnknownNameError
+from bench.core.errors import RegistryError, UnavailableError, UnknownNameError
 
 __all__ = ["GROUPS", "Entry", "Registry", "registry", "suggest"]
 

@@ -14,7 +14,7 @@ committed one): a metric marked ``worse``, ``not finite`` or ``newly failing`` t
 drawn as a red cross, and each run's verdict is in the table of runs.
 
 Run folders may come from anywhere, so they are read as the report reads them
-(:func:`~bench.harness.results.load_records` with bad records left out and named) and
+(:func:`~bench.records.results.load_records` with bad records left out and named) and
 every string is escaped where it is written.
 """
 
@@ -27,8 +27,12 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
-from bench.errors import InputError, RecordWarning
-from bench.harness.check import (
+from bench.core.errors import InputError, RecordWarning
+from bench.harness.report import as_dict, figure, html_page, plot_text, pyplot
+from bench.harness.report_images import RunFiles, Shown
+from bench.harness.report_table import esc
+from bench.io.atomic import write_atomic
+from bench.records.check import (
     FAILING_MARKS,
     canonical_label,
     compare,
@@ -37,11 +41,7 @@ from bench.harness.check import (
     metric_info,
     record_key,
 )
-from bench.harness.report import as_dict, figure, html_page, plot_text, pyplot
-from bench.harness.report_images import RunFiles, Shown
-from bench.harness.report_table import esc
-from bench.harness.results import shading_label
-from bench.io.atomic import write_atomic
+from bench.records.results import shading_label
 
 __all__ = ["Point", "find_runs", "history_table", "instant", "load_history",
            "write_history"]
@@ -53,7 +53,7 @@ class Point:
     folder: Path
     commit: str
     date: str
-    entries: dict  # bench.harness.check.make_baseline's entries of the run
+    entries: dict  # bench.records.check.make_baseline's entries of the run
     jobs: dict  # entry key -> (model, method label, target faces, shading)
     when: datetime | None = None  # ``date`` as an instant (None: no readable date)
     verdict: str = "first run"  # the check against the previous run (or the baseline)

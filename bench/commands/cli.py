@@ -1,6 +1,6 @@
 """The ``bench`` command line: one module per subcommand in :mod:`bench.commands`.
 
-Errors meant for the user (:class:`~bench.errors.BenchError`) print one line,
+Errors meant for the user (:class:`~bench.core.errors.BenchError`) print one line,
 ``bench: error: ...``, and exit with code 2; warnings print ``bench: warning: ...``.
 """
 
@@ -23,7 +23,7 @@ from bench.commands import reproduce as reproduce_cmd
 from bench.commands import run as run_cmd
 from bench.commands import simplify as simplify_cmd
 from bench.commands import warmup as warmup_cmd
-from bench.errors import BenchError
+from bench.core.errors import BenchError
 
 COMMANDS = {"list": list_cmd, "simplify": simplify_cmd, "run": run_cmd, "report": report_cmd,
             "baseline": baseline_cmd, "check": check_cmd, "compare": compare_cmd,

@@ -1,5 +1,5 @@
 """What a Dask worker runs for ``bench run --executor dask``: the task and the worker
-plugin that keeps the worker's job processes (:mod:`bench.harness.cluster` explains the
+plugin that keeps the worker's job processes (:mod:`bench.run.cluster` explains the
 design). Imported only where ``distributed`` is installed: by the client once it has
 checked, and by the workers when they unpickle the plugin and the task.
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 from distributed import WorkerPlugin, get_worker
 from distributed.worker import thread_state
 
-from bench.harness.jobs import Job, JobProcess, JobResult
+from bench.run.jobs import Job, JobProcess, JobResult
 
 __all__ = ["PLUGIN", "JobProcesses", "dask_setup", "run_on_worker"]
 

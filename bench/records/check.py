@@ -21,13 +21,13 @@ The protocol never records NaN (an undefined metric is left out of the record), 
 in a record or a baseline is damage or a plug-in's bug, and a baseline file is checked
 by shape (:func:`load_baseline`) before it gates anything.
 
-The papers' claims (:mod:`bench.harness.claims`) are gated too: a baseline keeps the
+The papers' claims (:mod:`bench.records.claims`) are gated too: a baseline keeps the
 verdict of every claim its run has records for, and a claim that held there (``holds``
 or ``holds, weaker``) and no longer holds is ``claim broken``, which fails the check;
 one that now holds and did not is ``claim holds``; another change of verdict is
 ``changed``. A claim of the baseline the run cannot decide is ``missing``. A baseline
 also keeps each claim's class (whether its difference is significant,
-:data:`~bench.harness.claims.CLASSES`; baselines made before have none): a claim whose
+:data:`~bench.records.claims.CLASSES`; baselines made before have none): a claim whose
 class changed is ``class changed``, reported and never failing (the gate stays the
 exact verdict).
 
@@ -54,8 +54,8 @@ import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.errors import InputError
-from bench.harness.jobs import canonical_label
+from bench.core.errors import InputError
+from bench.run.jobs import canonical_label
 
 __all__ = ["BASELINE_SCHEMA", "FAILING_MARKS", "baseline_problem", "canonical_label",
            "check_tolerance", "compare", "load_baseline", "load_run", "make_baseline",
@@ -70,9 +70,9 @@ def metric_info(skip_broken: bool = True) -> dict[str, tuple[str, bool | None]]:
     """Registered metric name -> (unit, higher_is_better). A plug-in that cannot be
     loaded is left out (a report then shows its values unitless), unless
     ``skip_broken`` is false: then a plug-in that cannot be imported is an
-    :class:`~bench.errors.UnavailableError`, and one whose backend is missing still
+    :class:`~bench.core.errors.UnavailableError`, and one whose backend is missing still
     gives its unit and direction (they need no backend)."""
-    from bench.registry import registry
+    from bench.core.registry import registry
 
     out = {}
     for entry in registry("metric"):
@@ -90,7 +90,7 @@ def metric_directions() -> dict[str, bool]:
     """Registered metric name -> higher_is_better, for metrics that have a direction. The
     gate's: a metric plug-in that cannot be loaded is an error here, never a metric
     silently left ungated."""
-    from bench.errors import UnavailableError
+    from bench.core.errors import UnavailableError
 
     try:
         info = metric_info(skip_broken=False)
@@ -102,9 +102,9 @@ def metric_directions() -> dict[str, bool]:
 
 def load_run(run_dir: Path, skipped: list[str] | None = None) -> list[dict]:
     """The records of the run folder ``run_dir``
-    (:func:`~bench.harness.results.load_records`, ``skipped`` as there), refused with an
+    (:func:`~bench.records.results.load_records`, ``skipped`` as there), refused with an
     :class:`InputError` naming both files when two of them are records of one job."""
-    from bench.harness.results import load_records
+    from bench.records.results import load_records
 
     paths = []
     records = load_records(Path(run_dir), skipped=skipped, paths=paths)
@@ -120,13 +120,13 @@ def load_run(run_dir: Path, skipped: list[str] | None = None) -> list[dict]:
 
 def _key(model: str, label: str, target: int, shading: str) -> str:
     """``model | method | target | shading``; the shading is the evaluation's, with
-    ``-spec`` when specular was on (:func:`bench.harness.results.shading_label`)."""
+    ``-spec`` when specular was on (:func:`bench.records.results.shading_label`)."""
     return f"{model} | {canonical_label(label)} | {target} | {shading}"
 
 
 def record_key(record: dict) -> str:
     """The key a baseline gives ``record``'s job: ``model | method | target | shading``."""
-    from bench.harness.results import shading_label
+    from bench.records.results import shading_label
 
     job = record["job"]
     return _key(job["model"], job["label"], job["target_faces"], shading_label(job["protocol"]))
@@ -178,8 +178,8 @@ def claim_verdicts(records: list[dict], classes: dict | None = None) -> dict[str
     evidence for (a claim is scoped to its suite's models and budgets, so a run decides
     the claims of the suite it ran, and no others unless it ran their jobs too). Their
     classes go to ``classes`` when it is given."""
-    from bench.harness.claims import evaluate_claim
-    from bench.harness.suites import SUITES
+    from bench.records.claims import evaluate_claim
+    from bench.records.suites import SUITES
 
     out = {}
     for suite in SUITES.values():
@@ -235,7 +235,7 @@ def load_baseline(path: Path) -> dict:
 def baseline_problem(data) -> str | None:
     """Why ``data`` is not a baseline :func:`compare` can use (one line), or None. An
     empty one is refused too: it would pass every run."""
-    from bench.harness.results import STATUSES
+    from bench.records.results import STATUSES
 
     if not isinstance(data, dict):
         return f"expected a JSON object, got {type(data).__name__}"
@@ -263,7 +263,7 @@ def baseline_problem(data) -> str | None:
         errors = entry.get("metric_errors", {})
         if not isinstance(errors, dict) or not all(isinstance(v, str) for v in errors.values()):
             return f"{where}: 'metric_errors' is not an object of strings"
-    from bench.harness.claims import VERDICTS
+    from bench.records.claims import VERDICTS
 
     claims = data.get("claims", {})
     if not isinstance(claims, dict):
@@ -271,7 +271,7 @@ def baseline_problem(data) -> str | None:
     for name, verdict in claims.items():
         if verdict not in VERDICTS:
             return f"claim {_show(name)}: verdict {_show(verdict)} is not one of {VERDICTS}"
-    from bench.harness.claims import CLASSES
+    from bench.records.claims import CLASSES
 
     classes = data.get("claim_classes", {})
     if not isinstance(classes, dict) or not all(v in CLASSES for v in classes.values()):
@@ -347,7 +347,7 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
 def _compare_claims(old: dict, new: dict, old_classes: dict | None = None,
                     new_classes: dict | None = None) -> list[Row]:
     """Rows for the claims' verdicts and changed classes (the module's docstring)."""
-    from bench.harness.claims import HOLDING
+    from bench.records.claims import HOLDING
 
     rows = []
     for name in sorted(set(old) | set(new)):

@@ -44,9 +44,9 @@ import warnings
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from bench.errors import BenchError, InputError, MethodError, ParamError
-from bench.mesh import Mesh
-from bench.registry import suggest
+from bench.core.errors import BenchError, InputError, MethodError, ParamError
+from bench.core.mesh import Mesh
+from bench.core.registry import suggest
 
 __all__ = ["Method", "SimplifyResult", "bounded", "canonical_params", "check_params",
            "parse_params", "resolve_target", "run_method", "target_tolerance"]
@@ -94,7 +94,7 @@ class Method:
     requires: ClassVar[dict[str, str]] = {}  #: import name -> pip requirement
     #: run once on two tiny meshes before a process's first timed job of this method, so
     #: compilation and first-call costs stay out of ``wall_seconds``
-    #: (bench.harness.warmup); False for a method whose calls act beyond their result
+    #: (bench.run.warmup); False for a method whose calls act beyond their result
     warms_up: ClassVar[bool] = True
 
     @dataclass

@@ -2,7 +2,7 @@
 
 Built-ins are registered under the ``bench.models`` entry-point group like any
 plug-in model, each as a :class:`ModelSpec`. :func:`resolve_model` turns a command-line
-word into a :class:`~bench.mesh.Mesh`: a registered name, or else a path to a file.
+word into a :class:`~bench.core.mesh.Mesh`: a registered name, or else a path to a file.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from bench.errors import InputError, UnknownNameError
-from bench.mesh import Mesh
-from bench.registry import suggest
+from bench.core.errors import InputError, UnknownNameError
+from bench.core.mesh import Mesh
+from bench.core.registry import suggest
 
 __all__ = [
     "BARREL",
@@ -77,19 +77,19 @@ def _load_sample(filename: str) -> Callable[[], Mesh]:
 
 
 def _torus() -> Mesh:
-    from bench.models.torus import make_torus
+    from bench.catalog.torus import make_torus
 
     return make_torus()
 
 
 def _interior() -> Mesh:
-    from bench.models.interior import make_interior
+    from bench.catalog.interior import make_interior
 
     return make_interior()
 
 
 def _torus_puzzle() -> Mesh:
-    from bench.models.puzzle import make_torus_puzzle
+    from bench.catalog.puzzle import make_torus_puzzle
 
     return make_torus_puzzle()
 
@@ -104,30 +104,31 @@ BUNNY_TEXTURED = ModelSpec(
     _load_sample("bunny10k_textured.obj"), requires={"pymeshlab": "pymeshlab>=2023.12"})
 TORUS = ModelSpec(
     "torus", "swept spinning-ellipse torus with a non-linear texture map (L&T 2000 §5.4)",
-    "procedural (bench.models.torus, seed 2000)", _torus)
+    "procedural (bench.catalog.torus, seed 2000)", _torus)
 INTERIOR = ModelSpec(
     "interior", "spherical shell with four round openings around a densely tessellated "
     "bumpy object; faces classified exterior/interior (L&T 2000 §5.2)",
-    "procedural (bench.models.interior)", _interior)
+    "procedural (bench.catalog.interior)", _interior)
 TORUS_PUZZLE = ModelSpec(
     "torus-puzzle", "the swept torus at 57,660 faces with a jigsaw puzzle texture, lit "
-    "(Williams et al. 2003, Plate 1)", "procedural (bench.models.puzzle, seed 2003)", _torus_puzzle)
+    "(Williams et al. 2003, Plate 1)", "procedural (bench.catalog.puzzle, seed 2003)",
+    _torus_puzzle)
 
 
 def _crate() -> Mesh:
-    from bench.models.gamemodels import make_crate
+    from bench.catalog.gamemodels import make_crate
 
     return make_crate()
 
 
 def _barrel() -> Mesh:
-    from bench.models.gamemodels import make_barrel
+    from bench.catalog.gamemodels import make_barrel
 
     return make_barrel()
 
 
 def _two_materials() -> Mesh:
-    from bench.models.materials import make_two_materials
+    from bench.catalog.materials import make_two_materials
 
     return make_two_materials()
 
@@ -147,16 +148,16 @@ def _predecimated(base: ModelSpec, faces: int) -> Callable[[], Mesh]:
 CRATE = ModelSpec(
     "crate", "subdivided box (12 x 12 quads a side) with per-face UVs: duplicated "
     "vertices along every box edge, three at each corner (González et al. 2008)",
-    "procedural (bench.models.gamemodels, seed 2008)", _crate)
+    "procedural (bench.catalog.gamemodels, seed 2008)", _crate)
 BARREL = ModelSpec(
     "barrel", "two materials in one atlas: a stave body and two metal lids whose rims "
     "share positions, not vertices, with the body (sub-meshes meeting along a seam)",
-    "procedural (bench.models.gamemodels, seed 2008)", _barrel)
+    "procedural (bench.catalog.gamemodels, seed 2008)", _barrel)
 TWO_MATERIALS = ModelSpec(
     "two-materials", "a sphere whose halves are two materials with their own textures "
     "(bricks north, waves south), packed into one atlas as the loaders pack a "
     "multi-material OBJ or glTF; metadata['atlas'] lists the materials",
-    "procedural (bench.models.materials)", _two_materials)
+    "procedural (bench.catalog.materials)", _two_materials)
 BUNNY_TEXTURED_815 = ModelSpec(
     "bunny-textured-815", "bunny-textured pre-decimated to 815 faces (Table 1 of "
     "González et al. 2008: 815 -> 100)", "bunny-textured, quadric engine (texture "
@@ -175,7 +176,7 @@ TORUS_13810 = ModelSpec(
 
 def _wild(make: str) -> Callable[[], Mesh]:
     def load() -> Mesh:
-        from bench.models import wild
+        from bench.catalog import wild
 
         return getattr(wild, make)()
     return load
@@ -184,15 +185,15 @@ def _wild(make: str) -> Callable[[], Mesh]:
 UV_SPHERE = ModelSpec(
     "uv-sphere", "a UV sphere of 200 segments and 60 rings: each pole one position with "
     "200 render vertices, a wrap-around seam (the wild suite)",
-    "procedural (bench.models.wild)", _wild("make_uv_sphere"))
+    "procedural (bench.catalog.wild)", _wild("make_uv_sphere"))
 KIT = ModelSpec(
     "kit", "a kit of 17 small props in six flat-colour materials: boxes, barrels, bolts, a "
     "box standing on another unwelded, sign plates on non-manifold edges (the wild suite)",
-    "procedural (bench.models.wild, seed 43)", _wild("make_kit"))
+    "procedural (bench.catalog.wild, seed 43)", _wild("make_kit"))
 VEHICLE = ModelSpec(
     "vehicle", "a vehicle-like assembly: a textured body and cabin, four separate wheels, "
     "hubcaps and axles in three materials (the wild suite)",
-    "procedural (bench.models.wild)", _wild("make_vehicle"))
+    "procedural (bench.catalog.wild)", _wild("make_vehicle"))
 
 
 def _looks_like_path(word: str) -> bool:
@@ -201,7 +202,7 @@ def _looks_like_path(word: str) -> bool:
 
 @lru_cache(maxsize=8)
 def _load_registered(name: str) -> Mesh:
-    from bench.registry import registry
+    from bench.core.registry import registry
 
     return registry("model").load(name).load()
 
@@ -240,8 +241,8 @@ def resolve_model(word: str) -> Mesh:
     ``::key=value`` (:func:`parse_model_spec`): ``spot.obj::texture=spot.png`` gives
     ``spot.obj`` the texture ``spot.png``.
     """
+    from bench.core.registry import registry
     from bench.io.meshio import apply_texture, load_mesh
-    from bench.registry import registry
 
     if "::" in word:
         base, options = parse_model_spec(word)

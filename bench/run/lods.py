@@ -41,10 +41,10 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from bench.errors import InputError
-from bench.harness.jobs import environment, evaluate_result
-from bench.mesh import Mesh
-from bench.method import Method, SimplifyResult, run_method
+from bench.core.errors import InputError
+from bench.core.mesh import Mesh
+from bench.core.method import Method, SimplifyResult, run_method
+from bench.run.jobs import environment, evaluate_result
 from metrics.protocol import Evaluation, Protocol
 
 __all__ = ["SIDECAR_SCHEMA", "Level", "build_levels", "level_name", "level_targets", "sidecar",

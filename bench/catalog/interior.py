@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh import Mesh, compact
+from bench.core.mesh import Mesh, compact
 
 __all__ = ["make_interior", "geodesic_sphere", "bump_height", "OPENINGS", "INNER_RADIUS",
            "INNER_AMPLITUDE", "EXTERIOR_RADIUS"]

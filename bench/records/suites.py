@@ -69,7 +69,7 @@ import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from bench.harness.claims import Claim
+from bench.records.claims import Claim
 
 __all__ = ["Suite", "SUITES", "get_suite", "evaluation_protocols", "SHADINGS",
            "PROTOCOL_OPTIONS", "assets_folder"]
@@ -101,7 +101,7 @@ class Suite:
     #: options) where options sets other :class:`~metrics.protocol.Protocol` fields
     #: (:data:`PROTOCOL_OPTIONS`: ``resolution``, ``views``); every job runs under each
     protocols: tuple[tuple, ...] = (("flat", False),)
-    #: the papers' claims this suite tests (:mod:`bench.harness.claims`); each is scoped
+    #: the papers' claims this suite tests (:mod:`bench.records.claims`); each is scoped
     #: to the suite's models and budgets unless it narrows them itself, and to the
     #: suite's evaluation label (shading and image settings) when it has one protocol
     claims: tuple[Claim, ...] = ()
@@ -146,7 +146,7 @@ class Suite:
         budgets = tuple(sorted({f for fs in self.faces.values() for f in fs}, reverse=True))
         # a suite of one protocol scopes its claims to it, so that records of the same
         # jobs under other image settings (w2003 and w2003-paper) never decide them
-        from bench.harness.results import shading_label
+        from bench.records.results import shading_label
 
         only = (shading_label(_protocol(*_protocol_entry(self.protocols[0])).as_dict())
                 if len(self.protocols) == 1 else None)
@@ -509,8 +509,8 @@ def evaluation_protocols(suite: Suite | None = None, shading: str | None = None,
 
 
 def get_suite(name: str) -> Suite:
-    from bench.errors import UnknownNameError
-    from bench.registry import suggest
+    from bench.core.errors import UnknownNameError
+    from bench.core.registry import suggest
 
     if name not in SUITES:
         raise UnknownNameError(f"unknown suite '{name}'{suggest(name, SUITES)} "

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 
 __all__ = ["make_crate", "make_barrel", "crate_texture", "barrel_texture"]
 

@@ -4,7 +4,7 @@ The paper shows "a textured and lit torus ... at full resolution with 57,660
 triangles" carrying a jigsaw puzzle texture (credited to Greg Turk). Neither the
 torus's proportions nor the texture are given; our choices (deterministic):
 
-- geometry: the swept-ellipse torus of :mod:`bench.models.torus` (the suite's torus, so its
+- geometry: the swept-ellipse torus of :mod:`bench.catalog.torus` (the suite's torus, so its
   non-linear parameterisation and UV seams are shared), on a 310 × 93 grid:
   2 · 310 · 93 = 57,660 triangles, exactly the paper's count; the grid's aspect follows
   the tube's (the big circle is about 3.3 times the ellipse's circumference);
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 
 __all__ = ["make_torus_puzzle", "puzzle_texture"]
 
@@ -27,7 +27,7 @@ __all__ = ["make_torus_puzzle", "puzzle_texture"]
 def make_torus_puzzle(major_segments: int = 310, minor_segments: int = 93, seed: int = 2003,
                       texture_size: int = 1024) -> Mesh:
     """The puzzle torus; ``2 * major_segments * minor_segments`` faces (57,660)."""
-    from bench.models.torus import make_torus
+    from bench.catalog.torus import make_torus
 
     torus = make_torus(major_segments, minor_segments, seed=seed, texture_size=64)
     return torus.replace(texture=puzzle_texture(texture_size, seed=seed), name="torus-puzzle",

@@ -17,7 +17,7 @@ from functools import cache
 
 import numpy as np
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 
 __all__ = ["tiny_meshes", "warm_up", "WARM"]
 
@@ -29,7 +29,7 @@ WARM: set = set()
 def tiny_meshes() -> tuple[Mesh, Mesh]:
     """An untextured and a textured UV sphere of 112 faces (the textured one with a seam
     and a 16² texture), enough to reach every kernel of every method once."""
-    from bench.models.torus import make_torus
+    from bench.catalog.torus import make_torus
 
     lat, lon = 8, 8
     theta = np.linspace(0, np.pi, lat + 1)[1:-1]
@@ -54,7 +54,7 @@ def warm_up(method_cls, params=None, ctx=None) -> float:
     seconds it took (0 when this process already warmed it up, or when the method says
     it ``warms_up`` not). Failures are ignored: a method that cannot run on a tiny mesh
     fails, or not, on the real one."""
-    from bench.method import run_method
+    from bench.core.method import run_method
 
     key = (method_cls.name, repr(params))
     if key in WARM or not getattr(method_cls, "warms_up", True):

@@ -47,16 +47,16 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from bench.errors import BenchError
-from bench.harness.keys import job_key
-from bench.harness.results import (
+from bench.core.errors import BenchError
+from bench.records.results import (
     SCHEMA_VERSION,
     result_status,
     shading_label,
     write_file,
     write_record,
 )
-from bench.harness.stats import compute_intervals
+from bench.records.stats import compute_intervals
+from bench.run.keys import job_key
 from metrics.protocol import Protocol
 
 __all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "canonical_label", "environment",
@@ -84,10 +84,10 @@ def method_label(name: str, params: dict) -> str:
 @functools.cache
 def canonical_label(label: str) -> str:
     """``name[key=value,...]`` with its parameters as a job holds them now
-    (:func:`bench.method.canonical_params`: defaults left out, values in their shortest
+    (:func:`bench.core.method.canonical_params`: defaults left out, values in their shortest
     form); the label unchanged when it does not parse or its method is not installed."""
-    from bench.method import canonical_params
-    from bench.registry import registry
+    from bench.core.method import canonical_params
+    from bench.core.registry import registry
 
     name, bracket, rest = label.partition("[")
     if not bracket or not rest.endswith("]"):
@@ -128,7 +128,7 @@ class Job:
 
     @property
     def key(self) -> str:
-        """File-name stem of this job's record: unique, readable, stable (bench.harness.keys)."""
+        """File-name stem of this job's record: unique, readable, stable (bench.run.keys)."""
         return job_key(self.model, self.method, self.label, self.params, self.target_faces,
                        self.protocol)
 
@@ -272,10 +272,10 @@ def use_threads(requested: int | None) -> int:
 
 
 def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
-    from bench.harness.warmup import warm_up
-    from bench.method import parse_params, run_method
-    from bench.models import resolve_model
-    from bench.registry import registry
+    from bench.catalog import resolve_model
+    from bench.core.method import parse_params, run_method
+    from bench.core.registry import registry
+    from bench.run.warmup import warm_up
     from metrics.protocol import original_images
 
     record = result.record
@@ -330,7 +330,7 @@ def evaluate_result(original, result, protocol, reference_images=None):
     record is (``bench run``) and as ``bench simplify --evaluate`` does per level.
 
     A view-dependent result is imaged view by view with its own cuts
-    (:attr:`~bench.method.SimplifyResult.view_cuts`); its other metrics use its
+    (:attr:`~bench.core.method.SimplifyResult.view_cuts`); its other metrics use its
     view-independent mesh.
 
     Returns
@@ -519,7 +519,7 @@ import sys
 from multiprocessing.connection import Connection
 conn = Connection(int(sys.argv[1]))
 sys.path[:] = conn.recv()
-from bench.harness.jobs import serve
+from bench.run.jobs import serve
 serve(conn)
 """
 

@@ -33,7 +33,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from bench.mesh import Mesh
+from bench.core.mesh import Mesh
 
 __all__ = ["Metric", "Value", "NEEDS"]
 

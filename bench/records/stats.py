@@ -2,7 +2,7 @@
 
 Every image metric of a record is one number summarising the protocol's views (24, or
 FLIP's subset of them), and its per-view values are kept in the record's ``per_view``
-(:class:`bench.metric.Value`). This module turns those into
+(:class:`bench.core.metric.Value`). This module turns those into
 
 * **intervals** (:func:`interval`, :func:`record_intervals`): a 95 % bootstrap
   confidence interval of the reported value over the views, from

@@ -2,12 +2,12 @@
 
 One code path whatever runs the jobs: :func:`execute` takes the planned jobs, hands
 them to an *executor* and writes every result it gets back into the run folder
-(:func:`bench.harness.jobs.store_result`: images, then the record, atomically) while the
+(:func:`bench.run.jobs.store_result`: images, then the record, atomically) while the
 progress bar advances. The executor only runs jobs:
 
 * ``local`` (:class:`LocalPool`, the default): ``workers`` job processes on this
   machine, supervised here;
-* ``dask`` (:class:`bench.harness.cluster.DaskExecutor`): a Dask cluster, at a
+* ``dask`` (:class:`bench.run.cluster.DaskExecutor`): a Dask cluster, at a
   scheduler's address or a ``LocalCluster`` of ``workers`` processes.
 
 Either way a crash, a hang past the timeout or an exception becomes a failed record
@@ -25,8 +25,9 @@ from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Self
 
-from bench.errors import InputError
-from bench.harness.jobs import (
+from bench.core.errors import InputError
+from bench.records.results import EVALUATED
+from bench.run.jobs import (
     SHEET_VIEWS,
     Job,
     JobProcess,
@@ -37,7 +38,6 @@ from bench.harness.jobs import (
     run_job,
     store_result,
 )
-from bench.harness.results import EVALUATED
 
 __all__ = ["EXECUTORS", "SHEET_VIEWS", "Job", "JobResult", "LocalPool", "environment",
            "execute", "method_label", "next_job", "plan", "remaining", "run_job"]
@@ -71,7 +71,7 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
     (local) or of a LocalCluster's workers (dask without ``scheduler``); ``scheduler`` is
     a Dask scheduler's address (dask only). A job whose method runs past ``timeout``
     seconds is failed, as is one whose set-up or evaluation runs past
-    :data:`~bench.harness.jobs.PHASE_LIMIT`. ``threads`` is how many threads each job's
+    :data:`~bench.run.jobs.PHASE_LIMIT`. ``threads`` is how many threads each job's
     parallel kernels may use (None: :func:`default_threads` of ``workers``).
     """
     from tqdm import tqdm
@@ -86,7 +86,7 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
         return []
     records = []
     if executor == "dask":
-        from bench.harness.cluster import DaskExecutor
+        from bench.run.cluster import DaskExecutor
 
         pool = DaskExecutor(workers, scheduler, threads or default_threads(workers, scheduler))
     else:

@@ -22,9 +22,9 @@ its images exist.
 A record of a newer schema is refused; older ones are read as they are.
 
 Schema 2 added ``intervals``: the 95 % bootstrap interval over the views of every metric
-with per-view values (:func:`bench.harness.stats.compute_intervals`), computed when the
+with per-view values (:func:`bench.records.stats.compute_intervals`), computed when the
 record is written. A schema-1 record has none; whatever reads intervals asks
-:func:`bench.harness.stats.record_intervals`, which computes them from its ``per_view``
+:func:`bench.records.stats.record_intervals`, which computes them from its ``per_view``
 with the same function and seed, so old and new records report the same interval for
 the same views. results.csv adds ``NAME_lo`` and ``NAME_hi`` columns after the others
 for every metric that some record has an interval of (:func:`write_table`).
@@ -44,7 +44,7 @@ import typing
 from dataclasses import fields
 from pathlib import Path
 
-from bench.errors import InputError
+from bench.core.errors import InputError
 from bench.io.atomic import write_atomic
 
 __all__ = [
@@ -211,7 +211,7 @@ def load_records(run_dir: Path, skipped: list[str] | None = None,
 def record_problem(record) -> str | None:
     """Why ``record`` is not a usable result record (one line), or None.
 
-    Checks what :func:`records_table`, the gate (:mod:`bench.harness.check`) and the
+    Checks what :func:`records_table`, the gate (:mod:`bench.records.check`) and the
     report read: the job's identity and protocol, the status, and the types of the
     metrics, per-view values, histogram, statistics, artifacts and errors. Strings are
     not judged by content (the report escapes them); numbers must be numbers, so no
@@ -386,7 +386,7 @@ def _one_line(exc: BaseException) -> str:
 def metric_columns(records: list[dict]) -> list[str]:
     """Registered metrics outside :data:`CSV_COLUMNS` that some record has, by name:
     the columns results.csv and the report add after ``status``."""
-    from bench.registry import registry
+    from bench.core.registry import registry
 
     found = set().union(*((r.get("metrics") or {}).keys() for r in records))
     return [name for name in registry("metric").names()
@@ -420,8 +420,8 @@ def records_table(records: list[dict]):
 def interval_table(records: list[dict]):
     """:func:`records_table` of ``records`` with, after its columns, ``NAME_lo`` and
     ``NAME_hi`` for every metric some record has an interval of
-    (:func:`bench.harness.stats.record_intervals`), empty where a record has none."""
-    from bench.harness.stats import record_intervals
+    (:func:`bench.records.stats.record_intervals`), empty where a record has none."""
+    from bench.records.stats import record_intervals
 
     table = records_table(records)
     intervals = [record_intervals(r) if evaluated(r) else {} for r in records]

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.core.mesh import Mesh
 from bench.io.atlas import Part, pack_materials
 from bench.io.validate import build_mesh
-from bench.mesh import Mesh
 
 __all__ = ["make_kit", "make_uv_sphere", "make_vehicle", "sphere_texture", "vehicle_texture"]
 
