@@ -74,7 +74,7 @@ def compare_methods(records: list[dict], a: str, b: str, metric: str = "d_rms"
     from bench.records.check import metric_info
     from bench.records.results import OK, shading_label
     from bench.records.stats import ALPHA, consistent_views, holm, paired, sign_test
-    from bench.run.jobs import canonical_label
+    from bench.core.method import canonical_label
 
     unit, higher = metric_info().get(metric, ("", None))
     if higher is None:

@@ -33,8 +33,9 @@ def add_parser(sub, name: str) -> None:
 
 def run(args) -> int:
     from bench.core.registry import suggest
+    from bench.harness.report_history import write_history
     from bench.records.check import check_tolerance, load_baseline, metric_info
-    from bench.records.history import load_history, write_history
+    from bench.records.history import load_history
 
     tolerance = check_tolerance(args.tolerance)
     known = metric_info()

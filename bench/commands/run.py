@@ -12,7 +12,7 @@ from pathlib import Path
 
 from bench.catalog import resolve_model
 from bench.core.errors import InputError
-from bench.core.method import canonical_params, resolve_target
+from bench.core.method import canonical_params, method_label, resolve_target
 from bench.core.registry import registry
 from bench.records.results import OFF_TARGET, OFF_TARGET_STATUS
 from bench.records.suites import evaluation_protocols, get_suite
@@ -20,7 +20,6 @@ from bench.run.runner import (
     EXECUTORS,
     default_threads,
     execute,
-    method_label,
     plan,
     remaining,
     usable_cores,

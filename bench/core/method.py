@@ -36,6 +36,7 @@ model's ``content_hash``, its parameters and its version).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 import time
@@ -48,8 +49,9 @@ from bench.core.errors import BenchError, InputError, MethodError, ParamError
 from bench.core.mesh import Mesh
 from bench.core.registry import suggest
 
-__all__ = ["Method", "SimplifyResult", "bounded", "canonical_params", "check_params",
-           "parse_params", "resolve_target", "run_method", "target_tolerance"]
+__all__ = ["Method", "SimplifyResult", "bounded", "canonical_label", "canonical_params",
+           "check_params", "method_label", "param_text", "parse_params", "resolve_target",
+           "run_method", "target_tolerance"]
 
 
 @dataclass
@@ -236,11 +238,47 @@ def canonical_params(params_cls: type, params: dict) -> dict:
     label in results.csv and the report. Raises :class:`ParamError` as
     :func:`parse_params` does.
     """
-    items = [f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in params.items()]
+    items = [f"{k}={param_text(v)}" for k, v in params.items()]
     parsed, defaults = parse_params(params_cls, items), params_cls()
     given = {str(k).strip().replace("-", "_") for k in params}
     return {f.name: getattr(parsed, f.name) for f in dataclasses.fields(params_cls)
             if f.name in given and getattr(parsed, f.name) != getattr(defaults, f.name)}
+
+
+def method_label(name: str, params: dict) -> str:
+    """``name[key=value,...]`` listing the parameters that differ from the defaults."""
+    if not params:
+        return name
+    items = (f"{k}={param_text(v)}" for k, v in sorted(params.items()))
+    return name + "[" + ",".join(items) + "]"
+
+
+@functools.cache
+def canonical_label(label: str) -> str:
+    """``name[key=value,...]`` with its parameters as a job holds them now
+    (:func:`canonical_params`: defaults left out, values in their shortest
+    form); the label unchanged when it does not parse or its method is not installed."""
+    from bench.core.registry import registry
+
+    name, bracket, rest = label.partition("[")
+    if not bracket or not rest.endswith("]"):
+        return label
+    params = {}
+    for item in rest[:-1].split(","):
+        key, sep, value = item.partition("=")
+        if not sep:
+            return label
+        params[key] = value
+    try:
+        return method_label(name, canonical_params(registry("method").load(name).Params, params))
+    except (BenchError, ImportError):
+        return label
+
+
+def param_text(value) -> str:
+    """A parameter's value as ``--param`` takes it on the command line (``true``, not
+    ``True``)."""
+    return str(value).lower() if isinstance(value, bool) else str(value)
 
 
 def _convert(key: str, raw: str, kind):

@@ -55,7 +55,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.core.errors import InputError
-from bench.run.jobs import canonical_label
+from bench.core.method import canonical_label
 
 __all__ = ["BASELINE_SCHEMA", "FAILING_MARKS", "baseline_problem", "canonical_label",
            "check_tolerance", "compare", "load_baseline", "load_run", "make_baseline",

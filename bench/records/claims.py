@@ -201,7 +201,7 @@ def _value(record: dict, metric: str) -> float:
 def claim_rows(claim: Claim, records: list[dict]) -> list[dict]:
     """The evidence of ``claim`` in ``records``: one row per (model, budget, shading)
     where the claim's records exist and are ``ok``, sorted."""
-    from bench.run.jobs import canonical_label
+    from bench.core.method import canonical_label
 
     wanted = {canonical_label(claim.method): "method"}
     if claim.against:

@@ -26,7 +26,6 @@ compiled numba kernels warm.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import io
 import os
 import platform
@@ -48,6 +47,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from bench.core.errors import BenchError
+from bench.core.method import method_label, param_text
 from bench.records.results import (
     SCHEMA_VERSION,
     result_status,
@@ -59,8 +59,8 @@ from bench.records.stats import compute_intervals
 from bench.run.keys import job_key
 from metrics.protocol import Protocol
 
-__all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "canonical_label", "environment",
-           "evaluate_result", "failed_result", "mesh_paths", "method_label", "plan",
+__all__ = ["SHEET_VIEWS", "Job", "JobProcess", "JobResult", "environment",
+           "evaluate_result", "failed_result", "mesh_paths", "plan",
            "run_job", "sheet_views", "store_result", "use_threads"]
 
 #: Protocol views shown in the report's image sheets (spread over the sphere).
@@ -72,40 +72,6 @@ def sheet_views(n_views: int) -> tuple[int, ...]:
     :data:`SHEET_VIEWS` of the 24-view protocol, every view of a smaller view set
     (``Protocol.views``)."""
     return SHEET_VIEWS if n_views >= 24 else tuple(range(min(n_views, len(SHEET_VIEWS))))
-
-
-def method_label(name: str, params: dict) -> str:
-    """``name[key=value,...]`` listing the parameters that differ from the defaults."""
-    if not params:
-        return name
-    return name + "[" + ",".join(f"{k}={_fmt(v)}" for k, v in sorted(params.items())) + "]"
-
-
-@functools.cache
-def canonical_label(label: str) -> str:
-    """``name[key=value,...]`` with its parameters as a job holds them now
-    (:func:`bench.core.method.canonical_params`: defaults left out, values in their shortest
-    form); the label unchanged when it does not parse or its method is not installed."""
-    from bench.core.method import canonical_params
-    from bench.core.registry import registry
-
-    name, bracket, rest = label.partition("[")
-    if not bracket or not rest.endswith("]"):
-        return label
-    params = {}
-    for item in rest[:-1].split(","):
-        key, sep, value = item.partition("=")
-        if not sep:
-            return label
-        params[key] = value
-    try:
-        return method_label(name, canonical_params(registry("method").load(name).Params, params))
-    except (BenchError, ImportError):
-        return label
-
-
-def _fmt(value) -> str:
-    return str(value).lower() if isinstance(value, bool) else str(value)
 
 
 def _slug(text: str) -> str:
@@ -291,7 +257,8 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
         record.update(status="skipped", error=f"{method_cls.name} needs texture coordinates; "
                       f"{mesh.name} has none")
         return
-    params = parse_params(method_cls.Params, [f"{k}={_fmt(v)}" for k, v in job.params.items()])
+    params = parse_params(method_cls.Params,
+                          [f"{k}={param_text(v)}" for k, v in job.params.items()])
     record["job"]["params_all"] = dataclasses.asdict(params)
 
     peak = _PeakMemory()

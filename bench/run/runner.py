@@ -33,14 +33,13 @@ from bench.run.jobs import (
     JobProcess,
     JobResult,
     environment,
-    method_label,
     plan,
     run_job,
     store_result,
 )
 
 __all__ = ["EXECUTORS", "SHEET_VIEWS", "Job", "JobResult", "LocalPool", "environment",
-           "execute", "method_label", "next_job", "plan", "remaining", "run_job"]
+           "execute", "next_job", "plan", "remaining", "run_job"]
 
 #: The executors ``bench run --executor`` offers.
 EXECUTORS = ("local", "dask")
