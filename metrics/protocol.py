@@ -37,6 +37,7 @@ different protocol versions are never compared.
 
 from __future__ import annotations
 
+import io
 import math
 import numbers
 import os
@@ -48,6 +49,7 @@ from typing import Literal
 import numpy as np
 
 from bench.core.mesh import Mesh
+from bench.io.atomic import write_atomic
 
 __all__ = ["PROTOCOL_VERSION", "Protocol", "Evaluation", "evaluate", "registered_metrics",
            "model_metrics", "original_images", "render_views", "render_per_view", "cache_dir"]
@@ -163,9 +165,9 @@ def original_images(original: Mesh, protocol: Protocol, cache: Path | None = Non
             pass  # a damaged cache file is re-rendered
     images = render_views(original, original, protocol)
     folder.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp.npy")
-    np.save(tmp, images)
-    os.replace(tmp, path)
+    buffer = io.BytesIO()
+    np.save(buffer, images)
+    write_atomic(path, buffer.getvalue())
     return images
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import json
 import os
 import time
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.core.mesh import Mesh
+from bench.io.atomic import write_atomic
 from methods.mt.bounds import NodeBounds, preprocess
 from methods.mt.dag import MultiTriangulation, build_mt
 
@@ -60,8 +62,8 @@ def mt_and_bounds(mesh: Mesh, texture_weight: float, version: str,
 
 def _save(path: Path, mt: MultiTriangulation, bounds: NodeBounds) -> None:
     """Write both as one ``.npz``: arrays as arrays, the rest as JSON; the texture is
-    the mesh's and is not stored. Written to a temporary name and renamed, so a reader
-    in another worker never sees half a file."""
+    the mesh's and is not stored. Written by :func:`bench.io.atomic.write_atomic`, so a
+    reader in another worker never sees half a file."""
     arrays, meta = {}, {}
     for prefix, obj in (("mt", mt), ("bounds", bounds)):
         for f in dataclasses.fields(obj):
@@ -73,9 +75,9 @@ def _save(path: Path, mt: MultiTriangulation, bounds: NodeBounds) -> None:
             else:
                 meta[f"{prefix}.{f.name}"] = value
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-    np.savez(tmp, __meta__=np.array(json.dumps(meta, default=_jsonable)), **arrays)
-    os.replace(tmp, path)
+    buffer = io.BytesIO()
+    np.savez(buffer, __meta__=np.array(json.dumps(meta, default=_jsonable)), **arrays)
+    write_atomic(path, buffer.getvalue())
 
 
 def _load(path: Path, mesh: Mesh):
