@@ -166,51 +166,19 @@ def run(args) -> int:
         raise InputError("--scheduler is the address of a Dask scheduler: it needs "
                          "--executor dask")
     workers, timeout = whole_number(args.jobs, "--jobs"), _seconds(args.timeout, "--timeout")
-    threads = whole_number(args.threads, "--threads") if args.threads else \
-        default_threads(workers, args.scheduler)
-    cores = usable_cores()
-    if not args.scheduler and workers * threads > cores:
-        print(f"bench: --jobs {workers} x {threads} thread{'s' if threads > 1 else ''} per job"
-              f"{'' if args.threads else ' (the least)'} is more than the {cores} cores here: "
-              "jobs compete for them and their times grow", file=sys.stderr)
+    threads = _threads(args, workers)
     faces = _budgets(args.faces, "--faces", lambda t: whole_number(t, "--faces"))
     ratios = _budgets(args.ratios, "--ratios", _ratio)
     out = Path(args.out or f"reports/run-{datetime.now():%Y%m%d-%H%M%S}")
     _check_out(out)
     suite = get_suite(args.suite) if args.suite else None
-    models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
-    if suite and suite.assets and not args.models:
-        present, missing = suite.present_assets()
-        models += present
-        if missing:
-            print(f"bench: note: {len(missing)} real asset(s) of the suite not found, left "
-                  f"out: {', '.join(missing)} (set BENCH_ASSETS to their folder)",
-                  file=sys.stderr)
+    models = _models(args, suite)
     methods = registry("method")
-    if args.methods:
-        variants = parse_variants(args.methods)
-    elif suite and suite.variants is not None:
-        variants = list(suite.variants)
-    else:
-        variants = [(e.name, {}) for e in methods if e.available]
-    distinct = {}  # fail on typos before any work starts; one variant per distinct job
-    for name, params in variants:
-        params = canonical_params(methods.load(name).Params, params)
-        distinct.setdefault(method_label(name, params), (name, params))
-    variants = list(distinct.values())
-
+    variants = _variants(args, suite, methods)
     meshes = {m: resolve_model(m) for m in models}
     if not args.methods and not (suite and suite.variants is not None):
         print(_default_methods_line(methods, [n for n, _ in variants], meshes), file=sys.stderr)
-    budgets = {}
-    for m, mesh in meshes.items():
-        if faces:
-            budgets[m] = [resolve_target(mesh.n_faces, faces=f) for f in faces]
-        elif suite and m in suite.faces:
-            budgets[m] = list(suite.faces[m])
-        else:
-            budgets[m] = [resolve_target(mesh.n_faces, ratio=r) for r in ratios or (
-                suite.ratios if suite and suite.ratios else DEFAULT_RATIOS)]
+    budgets = {m: _targets(mesh, m, faces, ratios, suite) for m, mesh in meshes.items()}
 
     protocols = evaluation_protocols(suite, args.shading, args.specular)
     jobs = plan(models, variants, budgets, protocols)
@@ -220,17 +188,8 @@ def run(args) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"--out {out}: cannot create it ({exc.strerror or exc})") from None
-    shadings = " x " + "/".join(
-        p.shading + ("+specular" if p.specular else "")
-        + (f" at {p.resolution}px" if p.resolution != Protocol().resolution else "")
-        + (f" on the {p.views} view set" if p.views != Protocol().views else "")
-        for p in protocols) + " shading"
-    where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
-             f"with {workers} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
-                                            else "")) + \
-        f", {threads} thread{'s' if threads > 1 else ''} per job"
     print(f"bench: {len(jobs)} jobs ({len(models)} models x {len(variants)} methods x budgets"
-          f"{shadings}) {where} -> {out}", file=sys.stderr)
+          f"{_shadings(protocols)}) {_where(args, workers, threads)} -> {out}", file=sys.stderr)
     try:
         execute(jobs, out, workers=workers, timeout=timeout, executor=args.executor,
                 scheduler=args.scheduler, threads=threads)
@@ -240,6 +199,75 @@ def run(args) -> int:
               file=sys.stderr)
         return 130
     return finish(out, build_report=not args.no_report, single_file=args.single_file)
+
+
+def _threads(args, workers: int) -> int:
+    """Threads per job (``--threads``, else the default for ``workers``), with a note when
+    jobs x threads is more than the cores here."""
+    threads = whole_number(args.threads, "--threads") if args.threads else \
+        default_threads(workers, args.scheduler)
+    cores = usable_cores()
+    if not args.scheduler and workers * threads > cores:
+        print(f"bench: --jobs {workers} x {threads} thread{'s' if threads > 1 else ''} per job"
+              f"{'' if args.threads else ' (the least)'} is more than the {cores} cores here: "
+              "jobs compete for them and their times grow", file=sys.stderr)
+    return threads
+
+
+def _models(args, suite) -> list[str]:
+    """The models of the run: ``--models``, else the suite's (with the real assets found),
+    else bunny and torus."""
+    models = _split(args.models) or list(suite.models if suite else ("bunny", "torus"))
+    if suite and suite.assets and not args.models:
+        present, missing = suite.present_assets()
+        models += present
+        if missing:
+            print(f"bench: note: {len(missing)} real asset(s) of the suite not found, left "
+                  f"out: {', '.join(missing)} (set BENCH_ASSETS to their folder)",
+                  file=sys.stderr)
+    return models
+
+
+def _variants(args, suite, methods) -> list[tuple[str, dict]]:
+    """The (method, parameters) of the run, one per distinct job: ``--methods``, else the
+    suite's, else every available method. A typo fails here, before any work starts."""
+    if args.methods:
+        variants = parse_variants(args.methods)
+    elif suite and suite.variants is not None:
+        variants = list(suite.variants)
+    else:
+        variants = [(e.name, {}) for e in methods if e.available]
+    distinct = {}
+    for name, params in variants:
+        params = canonical_params(methods.load(name).Params, params)
+        distinct.setdefault(method_label(name, params), (name, params))
+    return list(distinct.values())
+
+
+def _targets(mesh, model: str, faces: list, ratios: list, suite) -> list[int]:
+    """The face budgets of one model: ``--faces``, else the suite's for it, else the
+    ratios (``--ratios``, the suite's or the default) of its faces."""
+    if faces:
+        return [resolve_target(mesh.n_faces, faces=f) for f in faces]
+    if suite and model in suite.faces:
+        return list(suite.faces[model])
+    return [resolve_target(mesh.n_faces, ratio=r) for r in ratios or (
+        suite.ratios if suite and suite.ratios else DEFAULT_RATIOS)]
+
+
+def _shadings(protocols) -> str:
+    return " x " + "/".join(
+        p.shading + ("+specular" if p.specular else "")
+        + (f" at {p.resolution}px" if p.resolution != Protocol().resolution else "")
+        + (f" on the {p.views} view set" if p.views != Protocol().views else "")
+        for p in protocols) + " shading"
+
+
+def _where(args, workers: int, threads: int) -> str:
+    return (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
+            f"with {workers} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
+                                           else "")) + \
+        f", {threads} thread{'s' if threads > 1 else ''} per job"
 
 
 def _default_methods_line(methods, names: list[str], meshes: dict) -> str:

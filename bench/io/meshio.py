@@ -97,6 +97,36 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
     """
     path = Path(path)
     source = str(path)
+    ext = _mesh_format(path, source)
+    scan = {".obj": _scan_obj, ".ply": _scan_ply, ".off": _scan_off, ".gltf": _scan_gltf,
+            ".glb": _scan_gltf}.get(ext, lambda p: {})(path)
+
+    import trimesh
+
+    loaded, keys, several = _read_scene(path, source, ext, scan)
+    if several:
+        mesh = _load_materials(loaded, keys, source, ext, scan, name or path.stem)
+        return mesh if texture_file is None else apply_texture(mesh, texture_file)
+    if not isinstance(loaded, trimesh.Trimesh) or len(getattr(loaded, "faces", ())) == 0:
+        raise InputError(f"{source}: the mesh has no faces (a point cloud or line set "
+                         "cannot be simplified); export it with its triangles")
+
+    _warn_faces(source, scan)
+    _check_counts(loaded, source, scan)
+    uv, texture, colors, normals = _attributes(loaded, source, ext, scan)
+    if uv is not None:
+        _check_file_uv(uv, source, path if ext == ".obj" else None)
+    if uv is not None and texture_file is None and ext == ".obj" and not scan.get("mtllib"):
+        _warn_no_material(path)
+    mesh = build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
+                      colors=colors, texture=texture, name=name or path.stem,
+                      metadata={"source": source, **_surface(loaded.visual)})
+    return mesh if texture_file is None else apply_texture(mesh, texture_file)
+
+
+def _mesh_format(path: Path, source: str) -> str:
+    """The extension of ``path``, a readable regular file of a format :data:`FORMATS`
+    names whose first bytes look like that format; an InputError otherwise."""
     if not path.exists():
         raise InputError(f"{source}: no such file")
     if path.is_dir():
@@ -105,12 +135,15 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
     if ext not in FORMATS:
         raise InputError(f"{source}: unknown mesh format '{ext or '(none)'}'; "
                          f"supported: {', '.join(FORMATS)}")
-
     _check_readable(path, source)
     _check_signature(path, ext, source)
-    scan = {".obj": _scan_obj, ".ply": _scan_ply, ".off": _scan_off, ".gltf": _scan_gltf,
-            ".glb": _scan_gltf}.get(ext, lambda p: {})(path)
+    return ext
 
+
+def _read_scene(path: Path, source: str, ext: str, scan: dict):
+    """The file read by trimesh: ``(loaded, keys, several)``, with ``keys`` each
+    geometry's material key and ``several`` whether there is more than one material
+    (then ``loaded`` is the scene's meshes, else one mesh)."""
     import trimesh
 
     try:
@@ -131,14 +164,12 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
     except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds; the user needs one line
         raise InputError(f"{source}: could not read as {ext[1:].upper()} "
                          f"({type(exc).__name__}: {exc})") from None
-    if several:
-        mesh = _load_materials(loaded, keys, source, ext, scan, name or path.stem)
-        return mesh if texture_file is None else apply_texture(mesh, texture_file)
-    if not isinstance(loaded, trimesh.Trimesh) or len(getattr(loaded, "faces", ())) == 0:
-        raise InputError(f"{source}: the mesh has no faces (a point cloud or line set "
-                         "cannot be simplified); export it with its triangles")
+    return loaded, keys, several
 
-    _warn_faces(source, scan)
+
+def _check_counts(loaded, source: str, scan: dict) -> None:
+    """InputError when fewer vertices or faces were read than a PLY header declares; a
+    warning for each face dropped or split."""
     if scan.get("ply_vertices") is not None and len(loaded.vertices) < scan["ply_vertices"]:
         raise InputError(f"{source}: only {len(loaded.vertices)} of the "
                          f"{scan['ply_vertices']} vertices its header declares could be read; "
@@ -153,16 +184,6 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
         warn(f"{source}: triangulated polygon faces ({scan['ply_faces']} faces in the file "
              f"became {len(loaded.faces)} triangles"
              + (f"; {concave} concave, by ear clipping)" if concave else ")"))
-
-    uv, texture, colors, normals = _attributes(loaded, source, ext, scan)
-    if uv is not None:
-        _check_file_uv(uv, source, path if ext == ".obj" else None)
-    if uv is not None and texture_file is None and ext == ".obj" and not scan.get("mtllib"):
-        _warn_no_material(path)
-    mesh = build_mesh(loaded.vertices, loaded.faces, source=source, uv=uv, normals=normals,
-                      colors=colors, texture=texture, name=name or path.stem,
-                      metadata={"source": source, **_surface(loaded.visual)})
-    return mesh if texture_file is None else apply_texture(mesh, texture_file)
 
 
 #: Extensions of the image files an OBJ's texture may be (for :func:`_warn_no_material`).
@@ -1065,67 +1086,108 @@ def _scan_obj(path: Path) -> dict:
     """
     data = path.read_bytes()
     _, encoding = _decode(data)
-    counts = [0, 0, 0]  # v, vt, vn lines so far
-    polygons = short = 0
-    first_short = None
-    big: list[tuple[int, list[bytes], int]] = []  # (line, corner tokens, v lines before)
-    maxima = [(0, 0), (0, 0), (0, 0)]  # per kind: (largest index, its line)
-    worst = [None, None, None]  # per kind: first index <= 0 out of range
-    mtllibs = []
-    usemtl: dict[str, None] = {}  # material names in order of first use
-    heads = {b"v ": 0, b"v\t": 0, b"vt": 1, b"vn": 2}
+    lines = _ObjLines()
     for lineno, line in enumerate(io.BytesIO(data), 1):
+        lines.read(path, lineno, line, encoding)
+    lines.check_ranges(path)
+    mtl = _scan_mtls(path, lines.mtllibs, encoding)
+    text, concave = _ear_clip(data.decode(encoding), lines.big) if lines.big else (None, 0)
+    if concave == 0 and encoding == "utf-8" and "latin-1" not in mtl["encodings"]:
+        text = None  # trimesh reads the file itself, as it always has
+    elif text is None:
+        text = data.decode(encoding)
+    return {"polygons": lines.polygons, "concave": concave, "short": lines.short,
+            "first_short": lines.first_short, "texture_refs": mtl["refs"],
+            "texture_files": mtl["found"], "texture_unreadable": mtl["unreadable"],
+            "usemtl": list(lines.usemtl), "material_textures": mtl["textures"],
+            "files": [(path, "mesh"), *mtl["files"]], "encoding": encoding, "text": text,
+            "texture_aliases": mtl["aliases"], "mtllib": bool(lines.mtllibs)}
+
+
+#: The line heads an OBJ's vertex data starts with, and their kind (v, vt, vn).
+_OBJ_HEADS = {b"v ": 0, b"v\t": 0, b"vt": 1, b"vn": 2}
+
+
+class _ObjLines:
+    """What :func:`_scan_obj` gathers from an OBJ's lines, one line at a time."""
+
+    def __init__(self):
+        self.counts = [0, 0, 0]  # v, vt, vn lines so far
+        self.polygons = self.short = 0
+        self.first_short = None
+        self.big: list[tuple[int, list[bytes], int]] = []  # (line, corners, v lines before)
+        self.maxima = [(0, 0), (0, 0), (0, 0)]  # per kind: (largest index, its line)
+        self.worst = [None, None, None]  # per kind: first index <= 0 out of range
+        self.mtllibs = []
+        self.usemtl: dict[str, None] = {}  # material names in order of first use
+
+    def read(self, path: Path, lineno: int, line: bytes, encoding: str) -> None:
         head = line[:2]
-        if head in heads:
-            kind = heads[head]
+        if head in _OBJ_HEADS:
+            kind = _OBJ_HEADS[head]
             if kind == 0 or line[2:3] in (b" ", b"\t"):
-                counts[kind] += 1
+                self.counts[kind] += 1
         elif head == b"f " or head == b"f\t":
             tokens = line.split()[1:]
             if len(tokens) < 3:
-                short += 1
-                first_short = first_short or lineno
+                self.short += 1
+                self.first_short = self.first_short or lineno
             elif len(tokens) > 3:
-                polygons += 1
-                big.append((lineno, tokens, counts[0]))
+                self.polygons += 1
+                self.big.append((lineno, tokens, self.counts[0]))
             for tok in tokens:
-                for kind, part in enumerate(tok.split(b"/")[:3]):
-                    if kind and not part:  # v//vn, or v/ : no such index
-                        continue
-                    try:
-                        idx = int(part)
-                    except ValueError:
-                        raise InputError(f"{path}: line {lineno}: bad {_INDEX_KINDS[kind]} "
-                                         f"'{tok.decode(errors='replace')}'") from None
-                    if idx < 0:
-                        if counts[kind] + idx + 1 < 1 and worst[kind] is None:
-                            worst[kind] = (lineno, idx, counts[kind])
-                    elif idx == 0:
-                        if worst[kind] is None:
-                            worst[kind] = (lineno, idx, counts[kind])
-                    elif idx > maxima[kind][0]:
-                        maxima[kind] = (idx, lineno)
+                self._corner(path, lineno, tok)
         elif line.startswith(b"mtllib"):
             whole = line[len(b"mtllib"):].strip()  # one name with spaces, or several
             named = whole and (path.parent / whole.decode(encoding)).is_file()
-            mtllibs.extend([whole] if named else line.split()[1:])
+            self.mtllibs.extend([whole] if named else line.split()[1:])
         elif line.startswith(b"usemtl"):
             words = line.split()
             if len(words) > 1:
-                usemtl.setdefault(words[1].decode(encoding), None)
-    for kind in range(3):
-        if worst[kind] is not None:
-            lineno, idx, n = worst[kind]
-            raise InputError(f"{path}: line {lineno}: {_INDEX_KINDS[kind]} {idx} is out of "
-                             f"range ({n} {_INDEX_UNITS[kind]} defined before it); the file "
-                             "is corrupt or truncated")
-        top, lineno = maxima[kind]
-        if top > counts[kind]:
-            raise InputError(f"{path}: line {lineno}: {_INDEX_KINDS[kind]} {top} is out of "
-                             f"range (the file has {counts[kind]} {_INDEX_UNITS[kind]}); the "
-                             "file is corrupt or truncated")
-    refs, found, unreadable, textures, files = [], [], [], {}, [(path, "mesh")]
-    mtl_encodings, aliases = [], {}
+                self.usemtl.setdefault(words[1].decode(encoding), None)
+
+    def _corner(self, path: Path, lineno: int, tok: bytes) -> None:
+        """One face corner (``v``, ``v/vt``, ``v//vn``, ``v/vt/vn``): its indices read
+        and the largest and the first impossible one of each kind noted."""
+        for kind, part in enumerate(tok.split(b"/")[:3]):
+            if kind and not part:  # v//vn, or v/ : no such index
+                continue
+            try:
+                idx = int(part)
+            except ValueError:
+                raise InputError(f"{path}: line {lineno}: bad {_INDEX_KINDS[kind]} "
+                                 f"'{tok.decode(errors='replace')}'") from None
+            if idx < 0:
+                if self.counts[kind] + idx + 1 < 1 and self.worst[kind] is None:
+                    self.worst[kind] = (lineno, idx, self.counts[kind])
+            elif idx == 0:
+                if self.worst[kind] is None:
+                    self.worst[kind] = (lineno, idx, self.counts[kind])
+            elif idx > self.maxima[kind][0]:
+                self.maxima[kind] = (idx, lineno)
+
+    def check_ranges(self, path: Path) -> None:
+        """InputError for the first index of each kind that points at no line."""
+        for kind in range(3):
+            if self.worst[kind] is not None:
+                lineno, idx, n = self.worst[kind]
+                raise InputError(f"{path}: line {lineno}: {_INDEX_KINDS[kind]} {idx} is out "
+                                 f"of range ({n} {_INDEX_UNITS[kind]} defined before it); the "
+                                 "file is corrupt or truncated")
+            top, lineno = self.maxima[kind]
+            if top > self.counts[kind]:
+                raise InputError(f"{path}: line {lineno}: {_INDEX_KINDS[kind]} {top} is out "
+                                 f"of range (the file has {self.counts[kind]} "
+                                 f"{_INDEX_UNITS[kind]}); the file is corrupt or truncated")
+
+
+def _scan_mtls(path: Path, mtllibs: list[bytes], encoding: str) -> dict:
+    """The texture references of an OBJ's material files: the files read (``files``),
+    textures missing (``refs``, with material files missing), found (``found``: name and
+    path) and unreadable, each material's diffuse texture (``textures``), the names
+    trimesh will look for instead of the file's (``aliases``) and the files' encodings."""
+    refs, found, unreadable, textures, files = [], [], [], {}, []
+    encodings, aliases = [], {}
     for lib in mtllibs:
         mtl = path.parent / lib.decode(encoding)
         if not mtl.is_file():
@@ -1133,7 +1195,7 @@ def _scan_obj(path: Path) -> dict:
             continue
         files.append((mtl, "material"))
         mtl_text, mtl_encoding = _decode(mtl.read_bytes())
-        mtl_encodings.append(mtl_encoding)
+        encodings.append(mtl_encoding)
         current = None
         for line in mtl_text.splitlines():
             parts = line.strip().split()
@@ -1163,16 +1225,8 @@ def _scan_obj(path: Path) -> dict:
                     unreadable.append(f"{tex} {problem}")
                 if key == "map_kd" and current is not None:
                     textures[current] = (str(where), problem)
-    text, concave = _ear_clip(data.decode(encoding), big) if big else (None, 0)
-    if concave == 0 and encoding == "utf-8" and "latin-1" not in mtl_encodings:
-        text = None  # trimesh reads the file itself, as it always has
-    elif text is None:
-        text = data.decode(encoding)
-    return {"polygons": polygons, "concave": concave, "short": short,
-            "first_short": first_short, "texture_refs": refs, "texture_files": found,
-            "texture_unreadable": unreadable, "usemtl": list(usemtl),
-            "material_textures": textures, "files": files, "encoding": encoding,
-            "text": text, "texture_aliases": aliases, "mtllib": bool(mtllibs)}
+    return {"refs": refs, "found": found, "unreadable": unreadable, "textures": textures,
+            "files": files, "encodings": encodings, "aliases": aliases}
 
 
 #: Options of an MTL texture statement (``map_Kd -s 1 1 1 -clamp on file.png``) and how

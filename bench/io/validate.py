@@ -85,15 +85,32 @@ def build_mesh(positions, faces, *, source: str, uv=None, normals=None, colors=N
     InputError
         No faces, non-finite positions, indices out of range, malformed arrays.
     """
+    positions, faces = _checked_arrays(positions, faces, source)
+    attrs = _attributes(source, len(positions), uv=uv, normals=normals, colors=colors)
+    mesh = Mesh(positions, faces, texture=texture, name=name or source,
+                metadata=dict(metadata or {}), **attrs)
+    mesh = _drop_degenerate(mesh, source)
+    nm = int(mesh.welded.non_manifold.sum())
+    if nm:
+        warn(f"{source}: {nm} non-manifold edges (more than two faces); allowed, but some "
+             "methods treat them as locked")
+    return mesh
+
+
+def _checked_arrays(positions, faces, source: str) -> tuple[np.ndarray, np.ndarray]:
+    """Positions as float64 and faces as int32, or an InputError naming what is wrong:
+    a shape, no faces, integer indices, non-finite coordinates, indices out of range."""
     positions = np.asarray(positions, dtype=np.float64)
     if positions.ndim != 2 or positions.shape[1] != 3:
-        raise InputError(f"{source}: positions must be an (n, 3) array, got shape {positions.shape}")
+        raise InputError(f"{source}: positions must be an (n, 3) array, "
+                         f"got shape {positions.shape}")
     faces = np.asarray(faces)
     if faces.size == 0:
         raise InputError(f"{source}: the mesh has no faces (a point cloud or line set "
                          "cannot be simplified); export it with its triangles")
     if faces.ndim != 2 or faces.shape[1] != 3:
-        raise InputError(f"{source}: faces must be an (m, 3) array of triangles, got shape {faces.shape}")
+        raise InputError(f"{source}: faces must be an (m, 3) array of triangles, "
+                         f"got shape {faces.shape}")
     if not np.issubdtype(faces.dtype, np.integer):
         raise InputError(f"{source}: face indices must be integers, got {faces.dtype}")
 
@@ -112,9 +129,15 @@ def build_mesh(positions, faces, *, source: str, uv=None, normals=None, colors=N
                          f"vertices ({int(out.any(axis=1).sum())} faces out of range); "
                          "the file is corrupt or truncated")
     faces = faces.astype(np.int32)
+    return positions, faces
 
+
+def _attributes(source: str, n: int, **given) -> dict:
+    """The per-vertex attributes (``uv``, ``normals``, ``colors``) given and usable: one
+    of the wrong shape or with non-finite values is left out with a warning."""
     attrs = {}
-    for attr, value, width in (("uv", uv, 2), ("normals", normals, 3), ("colors", colors, 4)):
+    for attr, width in (("uv", 2), ("normals", 3), ("colors", 4)):
+        value = given[attr]
         if value is None:
             continue
         value = np.asarray(value)
@@ -127,15 +150,7 @@ def build_mesh(positions, faces, *, source: str, uv=None, normals=None, colors=N
         if attr == "uv":
             check_uv(value, source, finite_checked=True)
         attrs[attr] = value
-
-    mesh = Mesh(positions, faces, texture=texture, name=name or source,
-                metadata=dict(metadata or {}), **attrs)
-    mesh = _drop_degenerate(mesh, source)
-    nm = int(mesh.welded.non_manifold.sum())
-    if nm:
-        warn(f"{source}: {nm} non-manifold edges (more than two faces); allowed, but some "
-             "methods treat them as locked")
-    return mesh
+    return attrs
 
 
 def _drop_degenerate(mesh: Mesh, source: str) -> Mesh:
