@@ -46,6 +46,7 @@ from pathlib import Path
 
 from bench.core.errors import InputError
 from bench.io.atomic import write_atomic
+from bench.io.jsonable import json_default
 
 __all__ = [
     "CSV_COLUMNS",
@@ -137,7 +138,7 @@ def write_record(path: Path, record: dict, sort_keys: bool = True) -> Path:
     """
     path.parent.mkdir(parents=True, exist_ok=True)
     return write_atomic(path, json.dumps(record, indent=1, sort_keys=sort_keys,
-                                         default=_jsonable))
+                                         default=json_default))
 
 
 def write_file(path: Path, data: bytes) -> Path:
@@ -145,16 +146,6 @@ def write_file(path: Path, data: bytes) -> Path:
     never sees half a file, whoever else writes the same path."""
     path.parent.mkdir(parents=True, exist_ok=True)
     return write_atomic(path, data)
-
-
-def _jsonable(value):
-    import numpy as np
-
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
 def load_record(path: Path) -> dict:

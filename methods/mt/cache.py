@@ -25,6 +25,7 @@ import numpy as np
 
 from bench.core.mesh import Mesh
 from bench.io.atomic import write_atomic
+from bench.io.jsonable import json_default
 from methods.mt.bounds import NodeBounds, preprocess
 from methods.mt.dag import MultiTriangulation, build_mt
 
@@ -76,7 +77,7 @@ def _save(path: Path, mt: MultiTriangulation, bounds: NodeBounds) -> None:
                 meta[f"{prefix}.{f.name}"] = value
     path.parent.mkdir(parents=True, exist_ok=True)
     buffer = io.BytesIO()
-    np.savez(buffer, __meta__=np.array(json.dumps(meta, default=_jsonable)), **arrays)
+    np.savez(buffer, __meta__=np.array(json.dumps(meta, default=json_default)), **arrays)
     write_atomic(path, buffer.getvalue())
 
 
@@ -98,10 +99,3 @@ def _load(path: Path, mesh: Mesh):
     mt.texture = mesh.texture if mt.uv is not None else None
     return mt, parts["bounds"]
 
-
-def _jsonable(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"cannot store {type(value).__name__} in the MT cache")
