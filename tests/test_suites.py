@@ -116,13 +116,12 @@ def test_lt2000_suites_name_their_experiments():
 @pytest.mark.parametrize("name", sorted(SUITES))
 def test_suite_variants_are_valid_method_parameters(name):
     """What ``bench run --suite`` checks before any work starts, for every suite."""
-    from bench.core.method import parse_params
+    from bench.core.method import param_text, parse_params
     from bench.core.registry import registry
-    from bench.run.jobs import _fmt
 
     for method, params in SUITES[name].variants or ():
         cls = registry("method").load(method)
-        parsed = parse_params(cls.Params, [f"{k}={_fmt(v)}" for k, v in params.items()])
+        parsed = parse_params(cls.Params, [f"{k}={param_text(v)}" for k, v in params.items()])
         for key, value in params.items():
             assert getattr(parsed, key) == value
 
