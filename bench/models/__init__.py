@@ -58,10 +58,15 @@ class ModelSpec:
 
 
 def pymeshlab_sample(filename: str) -> Path:
-    """Path of a mesh shipped in pymeshlab's ``tests/sample_meshes`` folder."""
-    import pymeshlab
+    """Path of a mesh shipped in pymeshlab's ``tests/sample_meshes`` folder (found
+    without importing pymeshlab, which takes a while)."""
+    import importlib.util
 
-    path = Path(pymeshlab.__file__).parent / "tests" / "sample_meshes" / filename
+    spec = importlib.util.find_spec("pymeshlab")
+    if spec is None or spec.origin is None:
+        raise InputError("pymeshlab is not installed; its sample meshes (bunny, ...) come "
+                         "with it: pip install 'pymeshlab>=2023.12'")
+    path = Path(spec.origin).parent / "tests" / "sample_meshes" / filename
     if not path.exists():
         raise InputError(f"{path}: pymeshlab's sample mesh is missing; reinstall with "
                          "pip install --force-reinstall pymeshlab")
