@@ -200,6 +200,34 @@ VEHICLE = ModelSpec(
     "procedural (bench.models.wild)", _wild("make_vehicle"))
 
 
+def _subdivided(base: ModelSpec, times: int) -> Callable[[], Mesh]:
+    """``base`` with every triangle cut into four at its edges' midpoints, ``times``
+    times (4^times as many faces, the same surface): the inputs of the engine's
+    scaling benchmark (``scripts/speed_targets.py``)."""
+    def load() -> Mesh:
+        from bench.models.scale import subdivide
+
+        mesh = base.load()
+        for _ in range(times):
+            mesh = subdivide(mesh)
+        return mesh
+    return load
+
+
+BUNNY_X4 = ModelSpec(
+    "bunny-x4", "the bunny subdivided once at its edges' midpoints: 224,688 faces, the "
+    "same surface (scaling benchmark)", "bunny, midpoint subdivision",
+    _subdivided(BUNNY, 1), requires={"pymeshlab": "pymeshlab>=2023.12"})
+BUNNY_X16 = ModelSpec(
+    "bunny-x16", "the bunny subdivided twice at its edges' midpoints: 898,752 faces "
+    "(scaling benchmark)", "bunny, midpoint subdivision",
+    _subdivided(BUNNY, 2), requires={"pymeshlab": "pymeshlab>=2023.12"})
+BUNNY_X64 = ModelSpec(
+    "bunny-x64", "the bunny subdivided three times at its edges' midpoints: 3,595,008 "
+    "faces (scaling benchmark)", "bunny, midpoint subdivision",
+    _subdivided(BUNNY, 3), requires={"pymeshlab": "pymeshlab>=2023.12"})
+
+
 def _looks_like_path(word: str) -> bool:
     return os.sep in word or "/" in word or Path(word).suffix != "" or Path(word).exists()
 
