@@ -48,9 +48,12 @@ class ModelSpec:
     source: str
     loader: Callable[[], Mesh]
     requires: dict = field(default_factory=dict)
-    #: For a model made by simplifying another one: the faces it is made with. Such a
-    #: model costs a simplification to load, so listings show it without building it.
+    #: For a model made from another one (simplified or subdivided): the faces it is
+    #: made with. Such a model costs work to load, so listings show it without building
+    #: it.
     derived_faces: int | None = None
+    #: How such a model is made from another ("simplification", "subdivision").
+    derived_by: str = "simplification"
 
     def load(self) -> Mesh:
         mesh = self.loader()
@@ -217,15 +220,18 @@ def _subdivided(base: ModelSpec, times: int) -> Callable[[], Mesh]:
 BUNNY_X4 = ModelSpec(
     "bunny-x4", "the bunny subdivided once at its edges' midpoints: 224,688 faces, the "
     "same surface (scaling benchmark)", "bunny, midpoint subdivision",
-    _subdivided(BUNNY, 1), requires={"pymeshlab": "pymeshlab>=2023.12"})
+    _subdivided(BUNNY, 1), requires={"pymeshlab": "pymeshlab>=2023.12"},
+    derived_faces=224688, derived_by="subdivision")
 BUNNY_X16 = ModelSpec(
     "bunny-x16", "the bunny subdivided twice at its edges' midpoints: 898,752 faces "
     "(scaling benchmark)", "bunny, midpoint subdivision",
-    _subdivided(BUNNY, 2), requires={"pymeshlab": "pymeshlab>=2023.12"})
+    _subdivided(BUNNY, 2), requires={"pymeshlab": "pymeshlab>=2023.12"},
+    derived_faces=898752, derived_by="subdivision")
 BUNNY_X64 = ModelSpec(
     "bunny-x64", "the bunny subdivided three times at its edges' midpoints: 3,595,008 "
     "faces (scaling benchmark)", "bunny, midpoint subdivision",
-    _subdivided(BUNNY, 3), requires={"pymeshlab": "pymeshlab>=2023.12"})
+    _subdivided(BUNNY, 3), requires={"pymeshlab": "pymeshlab>=2023.12"},
+    derived_faces=3595008, derived_by="subdivision")
 
 
 def _looks_like_path(word: str) -> bool:
