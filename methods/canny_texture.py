@@ -71,6 +71,7 @@ __all__ = ["CannyTexture", "crossing_share"]
 
 class CannyTexture(Method):
     name = "canny-texture"
+    kernels = ("engine", "canny")
     # 2: quadric base with texture quadrics; 3: superseded entries dropped; 4: a wedge
     # merges once per collapse (the quadric base counted it once per face of the edge);
     # 5: the penalty in the base cost's units (canny_units="base-cost"): as an area

@@ -228,6 +228,7 @@ def rebuild_normals(mesh: Mesh, angle: float = NORMALS_ANGLE) -> Mesh:
 
 class EntropyTwin(Method):
     name = "entropy-twin"
+    kernels = ("engine", "imaging", "canny")
     # 2: the texture-quadric pre-simplification merges each wedge once; 3: the engine's
     # placement guard, parts and materials kept
     version = "3"

@@ -62,6 +62,7 @@ PRESIMPLIFY_RATIO = 10
 
 class ImageDriven(Method):
     name = "image-driven"
+    kernels = ("engine", "imaging")
     version = "2"  # 2: the engine's placement guard, parts and materials kept
     summary = ("collapse cost = change of the squared luminance error over 20 views, "
                "incremental numba renderer")

@@ -29,6 +29,7 @@ __all__ = ["Memoryless"]
 
 class Memoryless(Method):
     name = "memoryless"
+    kernels = ("engine",)
     # 2: R^5 texture coordinates; 3: superseded queue entries dropped; 4: the engine's
     # placement guard (its fallback for a degenerate profile), parts and materials kept
     version = "4"

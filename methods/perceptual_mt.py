@@ -128,6 +128,7 @@ class ViewCuts:
 
 class PerceptualMT(Method):
     name = "perceptual-mt"
+    kernels = ("engine", "mt")
     # 2: the MT is built from the engine's logged wedges and UVs (exact, not re-derived);
     # 3: the engine merges each wedge pair once (texture quadrics were counted twice);
     # 4: a node's view error is the largest of its subtree and refinement ranks equal

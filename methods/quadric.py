@@ -30,6 +30,7 @@ __all__ = ["Quadric"]
 
 class Quadric(Method):
     name = "quadric"
+    kernels = ("engine",)
     # 2: texture quadrics (GH98) on meshes with UVs; 3: a wedge merges once per
     # collapse (its quadric and UV were counted once per face of the edge); 4: the
     # placement guard, parts and materials kept (methods.engine: real assets)

@@ -85,6 +85,22 @@ def test_the_timeout_bounds_the_method_not_the_job(run):
     assert outside > 0.5  # the evaluation is real work: it is not what the 5 s bound
 
 
+def test_timings_say_where_the_job_went(run):
+    """Every stage of an evaluated job is timed, and together they are the job's own
+    wall time; the method's stage holds its reported seconds."""
+    root, _ = run
+    r = _records(root / "out")[("qslim", 100)]
+    t = r["timings"]
+    assert sorted(t) == sorted(["load", "warm_up", "method", "reference_images",
+                                "evaluation", "sheets", "mesh_files", "total"])
+    assert all(v >= 0 for v in t.values())
+    assert np.isclose(sum(v for k, v in t.items() if k != "total"), t["total"], rtol=1e-6)
+    assert t["method"] >= r["stats"]["wall_seconds"]
+    assert t["evaluation"] >= sum(r["seconds"].values()) - 1e-6
+    failed = _records(root / "out")[("raise", 100)]
+    assert sorted(failed["timings"]) == ["load", "warm_up"]  # as far as it got
+
+
 def test_record_contents(run):
     root, _ = run
     r = _records(root / "out")[("qslim", 100)]

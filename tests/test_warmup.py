@@ -40,3 +40,32 @@ def test_a_method_that_does_not_warm_up_is_not_run(tmp_path):
     Effects.warms_up = True  # the same class warming up: run on both tiny meshes
     assert warmup.warm_up(Effects) > 0
     assert calls == ["warmup", "warmup-textured"]
+
+
+def test_the_schedule_compiles_each_family_once_before_its_other_users():
+    kernels = {"quadric": ("engine",), "image-driven": ("engine", "imaging"),
+               "entropy-twin": ("engine", "imaging", "canny"), "qslim": (),
+               "canny-texture": ("engine", "canny"), "(evaluation)": ()}
+    order = warmup.schedule(kernels)
+    # the builders first: entropy-twin builds engine, imaging and canny (it needs most)
+    assert order == [("entropy-twin", set()), ("(evaluation)", set()), ("qslim", set()),
+                     ("canny-texture", {"entropy-twin"}), ("image-driven", {"entropy-twin"}),
+                     ("quadric", {"entropy-twin"})]
+
+
+def test_two_families_build_side_by_side():
+    kernels = {"a": ("engine",), "b": ("mt",), "c": ("engine", "mt"), "d": ("mt",)}
+    order = warmup.schedule(kernels)
+    assert order[0] == ("c", set())  # builds both families
+    assert dict(order) == {"c": set(), "a": {"c"}, "b": {"c"}, "d": {"c"}}
+    kernels = {"a": ("engine",), "b": ("mt",), "d": ("mt",)}
+    assert warmup.schedule(kernels) == [("a", set()), ("b", set()), ("d", {"b"})]
+
+
+def test_warm_up_all_in_two_processes_runs_every_task_once():
+    done = []
+    times = warmup.warm_up_all(["qslim", "fast-simplification"], jobs=2,
+                               on_done=lambda name, s: done.append(name))
+    assert sorted(done) == sorted(times) == sorted(["qslim", "fast-simplification",
+                                                    warmup.EVALUATION])
+    assert all(s >= 0 for s in times.values())

@@ -48,9 +48,12 @@ class ModelSpec:
     source: str
     loader: Callable[[], Mesh]
     requires: dict = field(default_factory=dict)
-    #: For a model made by simplifying another one: the faces it is made with. Such a
-    #: model costs a simplification to load, so listings show it without building it.
+    #: For a model made from another one (simplified or subdivided): the faces it is
+    #: made with. Such a model costs work to load, so listings show it without building
+    #: it.
     derived_faces: int | None = None
+    #: How such a model is made from another ("simplification", "subdivision").
+    derived_by: str = "simplification"
 
     def load(self) -> Mesh:
         mesh = self.loader()
@@ -58,10 +61,15 @@ class ModelSpec:
 
 
 def pymeshlab_sample(filename: str) -> Path:
-    """Path of a mesh shipped in pymeshlab's ``tests/sample_meshes`` folder."""
-    import pymeshlab
+    """Path of a mesh shipped in pymeshlab's ``tests/sample_meshes`` folder (found
+    without importing pymeshlab, which takes a while)."""
+    import importlib.util
 
-    path = Path(pymeshlab.__file__).parent / "tests" / "sample_meshes" / filename
+    spec = importlib.util.find_spec("pymeshlab")
+    if spec is None or spec.origin is None:
+        raise InputError("pymeshlab is not installed; its sample meshes (bunny, ...) come "
+                         "with it: pip install 'pymeshlab>=2023.12'")
+    path = Path(spec.origin).parent / "tests" / "sample_meshes" / filename
     if not path.exists():
         raise InputError(f"{path}: pymeshlab's sample mesh is missing; reinstall with "
                          "pip install --force-reinstall pymeshlab")
@@ -194,6 +202,37 @@ VEHICLE = ModelSpec(
     "vehicle", "a vehicle-like assembly: a textured body and cabin, four separate wheels, "
     "hubcaps and axles in three materials (the wild suite)",
     "procedural (bench.catalog.wild)", _wild("make_vehicle"))
+
+
+def _subdivided(base: ModelSpec, times: int) -> Callable[[], Mesh]:
+    """``base`` with every triangle cut into four at its edges' midpoints, ``times``
+    times (4^times as many faces, the same surface): the inputs of the engine's
+    scaling benchmark (``scripts/speed_targets.py``)."""
+    def load() -> Mesh:
+        from bench.catalog.scale import subdivide
+
+        mesh = base.load()
+        for _ in range(times):
+            mesh = subdivide(mesh)
+        return mesh
+    return load
+
+
+BUNNY_X4 = ModelSpec(
+    "bunny-x4", "the bunny subdivided once at its edges' midpoints: 224,688 faces, the "
+    "same surface (scaling benchmark)", "bunny, midpoint subdivision",
+    _subdivided(BUNNY, 1), requires={"pymeshlab": "pymeshlab>=2023.12"},
+    derived_faces=224688, derived_by="subdivision")
+BUNNY_X16 = ModelSpec(
+    "bunny-x16", "the bunny subdivided twice at its edges' midpoints: 898,752 faces "
+    "(scaling benchmark)", "bunny, midpoint subdivision",
+    _subdivided(BUNNY, 2), requires={"pymeshlab": "pymeshlab>=2023.12"},
+    derived_faces=898752, derived_by="subdivision")
+BUNNY_X64 = ModelSpec(
+    "bunny-x64", "the bunny subdivided three times at its edges' midpoints: 3,595,008 "
+    "faces (scaling benchmark)", "bunny, midpoint subdivision",
+    _subdivided(BUNNY, 3), requires={"pymeshlab": "pymeshlab>=2023.12"},
+    derived_faces=3595008, derived_by="subdivision")
 
 
 def _looks_like_path(word: str) -> bool:

@@ -7,40 +7,46 @@ Errors meant for the user (:class:`~bench.core.errors.BenchError`) print one lin
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import traceback
 import warnings
 
 from bench import __version__
-from bench.commands import baseline as baseline_cmd
-from bench.commands import check as check_cmd
-from bench.commands import compare as compare_cmd
-from bench.commands import history as history_cmd
-from bench.commands import list as list_cmd
 from bench.commands import one_line, stdout_closed
-from bench.commands import report as report_cmd
-from bench.commands import reproduce as reproduce_cmd
-from bench.commands import run as run_cmd
-from bench.commands import simplify as simplify_cmd
-from bench.commands import warmup as warmup_cmd
 from bench.core.errors import BenchError
 
-COMMANDS = {"list": list_cmd, "simplify": simplify_cmd, "run": run_cmd, "report": report_cmd,
-            "baseline": baseline_cmd, "check": check_cmd, "compare": compare_cmd,
-            "history": history_cmd, "reproduce": reproduce_cmd,
-            "warmup": warmup_cmd}
+#: The subcommands, each defined by the module of :mod:`bench.commands` of its name. A
+#: command's module is imported only when the command runs (or for ``bench --help``), so
+#: ``bench simplify`` never loads what ``bench run`` or the report need.
+COMMANDS = ("list", "simplify", "run", "report", "baseline", "check", "compare", "history",
+            "reproduce", "warmup")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The whole command line, or with ``only`` (a name of :data:`COMMANDS`) the parser
+    of that one subcommand, without importing the others' modules."""
     parser = argparse.ArgumentParser(
         prog="bench", description="Benchmark suite for appearance-preserving mesh simplification.")
     parser.add_argument("--version", action="version", version=f"bench {__version__}")
     parser.add_argument("--debug", action="store_true",
                         help="show full tracebacks of failures (for bug reports)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name, module in COMMANDS.items():
-        module.add_parser(sub, name)
+    for name in COMMANDS:
+        if only is None or name == only:
+            importlib.import_module(f"bench.commands.{name}").add_parser(sub, name)
     return parser
+
+
+def _command_named(argv: list[str]) -> str | None:
+    """The subcommand ``argv`` names, when its first word that is not an option is one
+    (then only its module need be imported); None otherwise."""
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word if word in COMMANDS else None
+    return None
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
@@ -48,7 +54,8 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(_command_named(argv))
     args = parser.parse_args(argv)
     warnings.showwarning = _show_warning
     try:

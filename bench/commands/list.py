@@ -82,7 +82,7 @@ def _row(kind: str, entry) -> dict:
                        detail=obj.summary)
         elif getattr(obj, "derived_faces", None):  # listing it must not build it
             row.update(faces=obj.derived_faces, texture="", detail=f"{obj.description}; "
-                       "made by simplification when first used")
+                       f"made by {getattr(obj, 'derived_by', 'simplification')} when first used")
         else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

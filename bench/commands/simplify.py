@@ -90,10 +90,10 @@ def parse_levels(text: str, flag: str, kind: type) -> list:
 
 
 def run(args) -> int:
-    from bench.commands.run import whole_number
-    from bench.run.jobs import use_threads
-
     if args.threads is not None:
+        from bench.commands.run import whole_number
+        from bench.run.jobs import use_threads
+
         use_threads(whole_number(args.threads, "--threads"))
     method_cls = registry("method").load(args.method)
     check_output_path(args.output)  # fail before the work, not after

@@ -98,6 +98,10 @@ class Method:
     #: compilation and first-call costs stay out of ``wall_seconds``
     #: (bench.run.warmup); False for a method whose calls act beyond their result
     warms_up: ClassVar[bool] = True
+    #: the families of compiled kernels the method runs (e.g. ``("engine", "imaging")``):
+    #: ``bench warmup --jobs N`` compiles a family in one process before the other
+    #: methods that need it start, so no two processes compile the same kernels
+    kernels: ClassVar[tuple[str, ...]] = ()
 
     @dataclass
     class Params:

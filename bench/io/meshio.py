@@ -98,7 +98,7 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
     path = Path(path)
     source = str(path)
     ext = _mesh_format(path, source)
-    scan = {".obj": _scan_obj, ".ply": _scan_ply, ".off": _scan_off, ".gltf": _scan_gltf,
+    scan = {".obj": _scan_obj_once, ".ply": _scan_ply, ".off": _scan_off, ".gltf": _scan_gltf,
             ".glb": _scan_gltf}.get(ext, lambda p: {})(path)
 
     import trimesh
@@ -360,7 +360,7 @@ def input_files(source: str | os.PathLike | None) -> list[tuple[Path, str]]:
     ext = path.suffix.lower()
     files = [(path, "mesh")]
     if ext == ".obj":
-        files = _scan_obj(path)["files"]
+        files = _scan_obj_once(path)["files"]
     elif ext == ".gltf":
         files += _gltf_files(path)
     return [(p, kind) for p, kind in files if p.is_file()]
@@ -1073,6 +1073,22 @@ def _decode(data: bytes) -> tuple[str, str]:
 
 _INDEX_KINDS = ("face index", "texture coordinate index", "normal index")
 _INDEX_UNITS = ("vertices", "texture coordinates", "normals")
+
+
+#: The last OBJ scanned, as (file identity, scan): loading a mesh and listing its input
+#: files (``bench simplify``) read and scan it once, not twice.
+_LAST_OBJ_SCAN: list = [None, None]
+
+
+def _scan_obj_once(path: Path) -> dict:
+    """:func:`_scan_obj`, kept for the same file (device, inode, size and modification
+    time unchanged) until another OBJ is scanned. Treat the result as read-only."""
+    st = os.stat(path)
+    identity = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+    if _LAST_OBJ_SCAN[0] != identity:
+        _LAST_OBJ_SCAN[:] = [None, _scan_obj(path)]
+        _LAST_OBJ_SCAN[0] = identity
+    return _LAST_OBJ_SCAN[1]
 
 
 def _scan_obj(path: Path) -> dict:

@@ -9,11 +9,17 @@ Schema (``schema`` = :data:`SCHEMA_VERSION`)::
      "metrics": {...}, "per_view": {...}, "intervals": {name: [lo, hi]},
      "silhouette_histogram": [...],
      "metric_errors": {name: error} (only when a metric raised; its value is missing),
-     "stats": {...}, "seconds": {...}, "stop_reason": str | null,
+     "stats": {...}, "seconds": {...}, "timings": {...}, "stop_reason": str | null,
      "environment": {"versions", "git_commit", "machine",
                      "worker": {"executor": "local" | "dask", "name", "host",
                                 "address" and "attempts" (Dask)}},
      "created": ISO time}
+
+``timings`` says where the job's own wall time went, in seconds per stage: ``load`` (the model), ``warm_up`` (numba's cache, a method's first call
+in the process), ``method``, ``reference_images`` (the original's views, rendered once
+per model and protocol in a worker), ``evaluation`` (the result's renders and every
+metric; ``seconds`` splits it), ``sheets`` and ``mesh_files`` (the PNGs and GLBs for the
+report), and ``total``. Records written before it have none.
 
 Records are written atomically (:func:`bench.io.atomic.write_atomic`), so an
 interrupted run leaves only complete records and ``--resume`` can trust what it finds.
@@ -340,6 +346,7 @@ _PARTS = {
     "silhouette_histogram": lambda v: None if _number_list(v) else "must be a list of numbers",
     "stats": lambda v: None if isinstance(v, dict) else f"must be an object, got {_kind(v)}",
     "seconds": lambda v: None if isinstance(v, dict) else f"must be an object, got {_kind(v)}",
+    "timings": _numbers_or_null,
     "artifacts": lambda v: None if isinstance(v, list) else f"must be a list, got {_kind(v)}",
     "metric_errors": _strings,
     "stop_reason": lambda v: None if isinstance(v, str) else f"must be a string, got {_kind(v)}",

@@ -245,11 +245,14 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     from metrics.protocol import original_images
 
     record = result.record
+    timings = record["timings"] = {}
+    clock = _Stopwatch(timings)
     method_cls = registry("method").load(job.method)
     record["method"] = {"name": method_cls.name, "version": method_cls.version,
                         "view_dependent": method_cls.view_dependent}
     if mesh is None:
         mesh = resolve_model(job.model)
+    clock.lap("load")
     record["model"] = {"name": mesh.name, "hash": mesh.content_hash, "faces": mesh.n_faces,
                        "render_vertices": mesh.n_vertices,
                        "welded_vertices": mesh.welded.n_vertices}
@@ -268,9 +271,11 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
            "cache_dir": str(cache_dir)}
     # numba compilation or cache loading is not method time: warm up first, apart
     compile_seconds = warm_up(method_cls, params, ctx)
+    clock.lap("warm_up")
     phase("method")
     simplified = run_method(method_cls(params), mesh, job.target_faces, ctx)
     phase("evaluation")
+    clock.lap("method")
     stats = dict(simplified.stats)
     stats["compile_seconds"] = compile_seconds
     stats["peak_mb"] = peak.megabytes()
@@ -280,7 +285,9 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
                   artifacts=_artifact_files(job, simplified.artifacts, result.files))
 
     reference = original_images(mesh, job.protocol)
+    clock.lap("reference_images")
     ev, view_stats = evaluate_result(mesh, simplified, job.protocol, reference)
+    clock.lap("evaluation")
     stats.update(view_stats)
     record.update(metrics=ev.metrics, per_view=ev.per_view, seconds=ev.seconds,
                   intervals=compute_intervals(ev.metrics, ev.per_view),
@@ -289,7 +296,27 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     if ev.errors:  # metrics that raised: the job is ok, those values are missing
         record["metric_errors"] = ev.errors
     _sheet_files(job, mesh, reference, ev.images, result)
+    clock.lap("sheets")
     _mesh_files(job, mesh, simplified.mesh, result)
+    clock.lap("mesh_files")
+    timings["total"] = clock.total()
+
+
+class _Stopwatch:
+    """Where a job's time goes, stage by stage, into the record's ``timings``: each
+    :meth:`lap` stores the seconds since the previous one under its name."""
+
+    def __init__(self, timings: dict):
+        self.timings = timings
+        self.start = self.last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.timings[name] = now - self.last
+        self.last = now
+
+    def total(self) -> float:
+        return time.perf_counter() - self.start
 
 
 def evaluate_result(original, result, protocol, reference_images=None):

@@ -6,7 +6,12 @@ cache (about a second), and pymeshlab and the renderers have first-call costs of
 own. A run's timings should hold none of that, so each worker warms a method up on
 :func:`tiny_meshes` before its first job of that method and records the time as
 ``compile_seconds``, apart from ``wall_seconds``. ``bench warmup`` (run by
-``scripts/setup.sh``) fills numba's cache once, so the first real run starts warm.
+``scripts/setup.sh``) fills numba's cache once, so the first real run starts warm:
+:func:`warm_up_all` runs every method once and evaluates a tiny result (the protocol's
+own kernels), in several processes at a time. Methods declare the families of kernels
+they run (:attr:`bench.core.method.Method.kernels`); the first method of a family compiles
+it alone, and the others that need it start once it is cached, so no two processes
+compile the same kernels.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ import numpy as np
 
 from bench.core.mesh import Mesh
 
-__all__ = ["tiny_meshes", "warm_up", "WARM"]
+__all__ = ["tiny_meshes", "warm_up", "warm_up_all", "schedule", "EVALUATION", "WARM"]
 
 #: The methods (by name and parameters) this process has warmed up.
 WARM: set = set()
@@ -72,3 +77,90 @@ def warm_up(method_cls, params=None, ctx=None) -> float:
                 pass
     WARM.add(key)
     return time.perf_counter() - start
+
+
+#: The task of :func:`warm_up_all` that compiles the protocol's kernels (not a method).
+EVALUATION = "(evaluation)"
+
+
+def warm_up_evaluation() -> float:
+    """Evaluate a tiny result under the default protocol, once, so the evaluation's
+    kernels are compiled; returns the seconds it took."""
+    from metrics.protocol import Protocol, evaluate
+
+    start = time.perf_counter()
+    plain, _ = tiny_meshes()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        evaluate(plain, plain.keep_faces(plain.faces[::2]),
+                 Protocol(resolution=64, hausdorff_samples=1000))
+    return time.perf_counter() - start
+
+
+def _warm_task(name: str) -> tuple[str, float]:
+    """One task of :func:`warm_up_all` in a worker process: (name, seconds)."""
+    if name == EVALUATION:
+        return name, warm_up_evaluation()
+    from bench.core.registry import registry
+
+    cls = registry("method").load(name)
+    return name, warm_up(cls, cls.Params())
+
+
+def schedule(kernels: dict[str, tuple[str, ...]]) -> list[tuple[str, set[str]]]:
+    """The order of :func:`warm_up_all`'s tasks, each with the tasks it waits for.
+
+    ``kernels`` maps each task to the kernel families it needs. The first task of a
+    family (the one needing most families, then by name) builds it; a later task waits
+    for the builder of every family it needs. Builders come first, so the families
+    compile side by side."""
+    order = sorted(kernels, key=lambda n: (-len(kernels[n]), n))
+    builder: dict[str, str] = {}
+    for name in order:
+        for family in kernels[name]:
+            builder.setdefault(family, name)
+    tasks = []
+    for name in order:
+        waits = {builder[f] for f in kernels[name]} - {name}
+        tasks.append((name, waits))
+    first = [t for t in tasks if not t[1]]
+    return first + [t for t in tasks if t[1]]
+
+
+def warm_up_all(names: list[str], jobs: int = 1, on_done=lambda name, seconds: None
+                ) -> dict[str, float]:
+    """Warm up the methods ``names`` and the evaluation, in ``jobs`` processes at a
+    time (this process when 1), as :func:`schedule` orders them; ``on_done`` is told of
+    each task as it ends. Returns each task's seconds."""
+    from bench.core.registry import registry
+
+    methods = registry("method")
+    kernels = {n: tuple(getattr(methods.load(n), "kernels", ())) for n in names}
+    kernels[EVALUATION] = ()
+    tasks = schedule(kernels)
+    times: dict[str, float] = {}
+    if jobs <= 1:
+        for name, _ in tasks:
+            times[name] = _warm_task(name)[1]
+            on_done(name, times[name])
+        return times
+
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    waiting = list(tasks)
+    running = {}
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        while waiting or running:
+            for task in [t for t in waiting if t[1] <= set(times)][:jobs - len(running)]:
+                waiting.remove(task)
+                running[pool.submit(_warm_task, task[0])] = task[0]
+            if not running:  # cannot happen: every wait is on an earlier task
+                raise RuntimeError(f"warm-up tasks wait on each other: {waiting}")
+            done, _ = wait(running, return_when=FIRST_COMPLETED)
+            for future in done:
+                name, seconds = future.result()
+                del running[future]
+                times[name] = seconds
+                on_done(name, seconds)
+    return times
