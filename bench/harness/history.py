@@ -37,9 +37,9 @@ from bench.harness.check import (
     metric_info,
     record_key,
 )
-from bench.harness.report import as_dict, figure, html_page, plot_text, pyplot
-from bench.harness.report_images import RunFiles, Shown
-from bench.harness.report_table import esc
+from bench.report.page import as_dict, figure, html_page, plot_text, pyplot
+from bench.report.images import RunFiles, Shown
+from bench.report.table import esc
 from bench.harness.results import shading_label
 from bench.io.atomic import write_atomic
 

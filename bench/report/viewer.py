@@ -7,7 +7,7 @@ classic ``<script src>`` files, so:
 
 - three.js (with its GLTFLoader and OrbitControls) is a classic script, a pinned
   release from the npm registry bundled by ``scripts/vendor_three.sh`` into
-  ``bench/harness/vendor/three/``; the report copies it to ``vendor/three.min.js``
+  ``bench/report/vendor/three/``; the report copies it to ``vendor/three.min.js``
   (with its licence beside it) and loads it when a reader first opens a view;
 - each GLB that passes :func:`run_glb` is wrapped in a classic script,
   ``meshes/js/<name>.glb.js`` (:func:`wrapper_path`), that stores its bytes (base64)
@@ -51,8 +51,8 @@ from importlib.resources import files
 from pathlib import Path
 from typing import NamedTuple
 
-from bench.harness.report_images import run_file
-from bench.harness.report_table import esc
+from bench.report.images import run_file
+from bench.report.table import esc
 from bench.harness.results import evaluated
 
 __all__ = ["MAX_MESH_BYTES", "VIEWER_SCRIPT", "Glb", "Viewers", "run_glb", "single_file_note",
@@ -81,7 +81,7 @@ class Glb(NamedTuple):
 def run_glb(run_dir: Path, relative, refused: list[str] | None = None,
             what: str = "3D mesh") -> Glb | None:
     """The GLB file ``run_dir/relative``, or None: absent (no reason given), or refused
-    with a reason in ``refused``, as :func:`~bench.harness.report_images.run_file`
+    with a reason in ``refused``, as :func:`~bench.report.images.run_file`
     refuses (outside the run folder, not ``.glb``, over :data:`MAX_MESH_BYTES`) or for
     its content (:func:`glb_problem`)."""
     found = run_file(run_dir, relative, refused, what, ".glb", MAX_MESH_BYTES)
@@ -156,7 +156,7 @@ def wrapper_path(path: str) -> str:
 class Viewers:
     """The 3D views of one report build: writes each GLB's script wrapper and the
     three.js bundle into the run folder once, through ``out``
-    (:class:`~bench.harness.report_images.RunFiles`); what cannot be shown is noted in
+    (:class:`~bench.report.images.RunFiles`); what cannot be shown is noted in
     ``refused``. :attr:`shown` holds the slugs of the models whose section holds a
     view, :attr:`used` whether any does: the pages that need :data:`VIEWER_SCRIPT`."""
 
@@ -173,7 +173,7 @@ class Viewers:
         written, or is missing from this installation)."""
         if self._three is None:
             try:
-                package = files("bench.harness")
+                package = files("bench.report")
                 bundle = package.joinpath(_BUNDLE).read_bytes()
                 licence = package.joinpath(_BUNDLE_LICENSE).read_bytes()
             except OSError:

@@ -2,15 +2,15 @@
 jobs one page per model (``DIR/model-<slug>.html``) linked from it.
 
 Sections follow Lindstrom & Turk 2000: a summary table (sortable and filterable,
-:mod:`bench.harness.report_table`), per model the d_RMS, FLIP and Hausdorff curves over face
+:mod:`bench.report.table`), per model the d_RMS, FLIP and Hausdorff curves over face
 count (Figures 5 and 6), silhouette histograms (Figure 7), comparison grids of the
-methods side by side (:mod:`bench.harness.report_grid`), a 3D view of the original and
-any LOD orbited together (:mod:`bench.harness.report_viewer`), image sheets with
+methods side by side (:mod:`bench.report.grid`), a 3D view of the original and
+any LOD orbited together (:mod:`bench.report.viewer`), image sheets with
 difference images (Plate 13), a timing table (Table 1), and the failures with their
 errors. Every page catches its scripts' errors and shows them at its top.
 
 Images are files of the run folder linked by relative URLs (thumbnails linking to the
-full PNGs, plots as SVG; :mod:`bench.harness.report_images`), so the folder opens from
+full PNGs, plots as SVG; :mod:`bench.report.images`), so the folder opens from
 disk with no server and can be zipped or published as it is; ``single_file=True``
 (``--single-file``) inlines every image as base64 instead, in one page, and leaves the
 3D view out with a note (it needs the run folder's meshes and three.js as files).
@@ -19,8 +19,8 @@ A run folder may come from someone else, so nothing in it is trusted: every stri
 a record is HTML-escaped where it is written, only records that pass
 :func:`~bench.harness.results.record_problem` are shown, and images are read only from
 inside the run folder and only when they are PNG files
-(:func:`~bench.harness.report_images.run_png`), meshes likewise and only as whole,
-self-contained GLB files (:func:`~bench.harness.report_viewer.run_glb`). What is left
+(:func:`~bench.report.images.run_png`), meshes likewise and only as whole,
+self-contained GLB files (:func:`~bench.report.viewer.run_glb`). What is left
 out for any of these reasons is listed under "Warnings" at the top of the report and
 given as a :class:`~bench.errors.RecordWarning`.
 """
@@ -38,12 +38,12 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import RecordWarning
-from bench.harness.report_grid import GRID_SCRIPT, comparison_grids, grid_links
-from bench.harness.report_images import Inline, RunFiles, Shown, difference_png, run_png
-from bench.harness.report_table import SCRIPT, summary_html
-from bench.harness.report_table import cell as _cell
-from bench.harness.report_table import esc as _esc
-from bench.harness.report_viewer import VIEWER_SCRIPT, Viewers, single_file_note
+from bench.report.grid import GRID_SCRIPT, comparison_grids, grid_links
+from bench.report.images import Inline, RunFiles, Shown, difference_png, run_png
+from bench.report.table import SCRIPT, summary_html
+from bench.report.table import cell as _cell
+from bench.report.table import esc as _esc
+from bench.report.viewer import VIEWER_SCRIPT, Viewers, single_file_note
 from bench.harness.results import (
     EVALUATED,
     OFF_TARGET_STATUS,

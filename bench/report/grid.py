@@ -3,7 +3,7 @@ with a row per sheet view and a column per method (the original first), each cel
 method's rendered view with its per-view d_RMS, the best of each row marked, and a
 toggle that shows the |ΔY| difference images instead.
 
-The images are the sheets' own (:func:`bench.harness.report.sheet_images`), so a grid
+The images are the sheets' own (:func:`bench.report.page.sheet_images`), so a grid
 costs no rendering and no image file of its own.
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from bench.harness.report_table import esc
+from bench.report.table import esc
 from bench.harness.results import evaluated, shading_label
 
 __all__ = ["GRID_SCRIPT", "comparison_grids"]
@@ -56,7 +56,7 @@ def grid_links(records: list[dict], images: dict, slug: str) -> str:
 
 def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
     """The grids of one model's ok ``records``; ``images`` maps ``id(record)`` to its
-    :func:`~bench.harness.report.sheet_images` (views in sheet order)."""
+    :func:`~bench.report.page.sheet_images` (views in sheet order)."""
     parts = []
     for grid_id, target, shading, group in _grids(records, images, slug):
         head = "<th>view</th><th>original</th>" + "".join(
