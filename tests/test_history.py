@@ -12,7 +12,8 @@ import sys
 import pandas as pd
 import pytest
 
-from bench.harness.history import load_history, write_history
+from bench.harness.history import load_history
+from bench.report.history import write_history
 from metrics.protocol import Protocol
 
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}

@@ -33,8 +33,9 @@ def add_parser(sub, name: str) -> None:
 
 def run(args) -> int:
     from bench.harness.check import check_tolerance, load_baseline, metric_info
-    from bench.harness.history import load_history, write_history
+    from bench.harness.history import load_history
     from bench.registry import suggest
+    from bench.report.history import write_history
 
     tolerance = check_tolerance(args.tolerance)
     known = metric_info()

@@ -21,30 +21,23 @@ every string is escaped where it is written.
 from __future__ import annotations
 
 import os
-import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
-from bench.errors import InputError, RecordWarning
+from bench.errors import InputError
 from bench.harness.check import (
     FAILING_MARKS,
     canonical_label,
     compare,
     load_run,
     make_baseline,
-    metric_info,
     record_key,
 )
-from bench.report.page import as_dict, figure, html_page, plot_text, pyplot
-from bench.report.images import RunFiles, Shown
-from bench.report.table import esc
 from bench.harness.results import shading_label
-from bench.io.atomic import write_atomic
 
-__all__ = ["Point", "find_runs", "history_table", "instant", "load_history",
-           "write_history"]
+__all__ = ["Point", "find_runs", "history_table", "instant", "load_history"]
 
 @dataclass
 class Point:
@@ -145,90 +138,6 @@ def history_table(points: list[Point]):
     return pd.DataFrame(rows, columns=columns)
 
 
-def write_history(points: list[Point], out: Path, metrics: list[str],
-                  reference: str = "the previous run") -> Path:
-    """``out/index.html`` (a table of the runs and a figure per model, budget and
-    shading with a panel per metric), ``out/history.csv`` and the figures' SVG files
-    under ``out/images/``; returns the page's path."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    table = history_table(points)
-    write_atomic(out / "history.csv", table.to_csv(index=False, float_format="%.9g"))
-    refused = []
-    files = RunFiles(out, refused)
-    info = metric_info()
-    shown = [m for m in metrics if m in set(table.metric)]
-    parts = [f"<h1>Quality over {len(points)} runs</h1>",
-             (f"<p class='note'>Each point is a run folder, at the commit and date it "
-             f"recorded; a red cross is a value <code>bench check</code> would have failed "
-             f"against {esc(reference)}. Metrics: {esc(', '.join(shown) or 'none')}. The "
-             "data: <a href='history.csv'>history.csv</a>.</p>"),
-             _runs_table(points)]
-    notes = [f"{p.folder.name}: {note}" for p in points for note in p.skipped]
-    if notes:
-        parts.append("<div class='warnings'><p>Left out:</p><ul>"
-                     + "".join(f"<li>{esc(n)}</li>" for n in notes) + "</ul></div>")
-    groups = table[table.metric.isin(shown)].groupby(["model", "target_faces", "shading"],
-                                                     sort=True)
-    model = None
-    for n, ((name, target, shading), group) in enumerate(groups):
-        if name != model:
-            model = name
-            parts.append(f"<h2>{esc(name)}</h2>")
-        caption = f"{name}, {target} faces, {shading} shading"
-        src = files.plot(_figure(group, points, shown, info), f"history-{n:04d}")
-        if src:
-            parts.append(figure(Shown(src), caption, "history"))
-    for note in refused + notes:
-        warnings.warn(note, RecordWarning, stacklevel=2)
-    return write_atomic(out / "index.html", html_page("bench history", parts))
-
-
-def _runs_table(points: list[Point]) -> str:
-    rows = []
-    for i, p in enumerate(points):
-        jobs = Counter(e["status"] for e in p.entries.values())
-        status = ", ".join(f"{n} {s}" for s, n in sorted(jobs.items()))
-        cls = " class='failed'" if p.verdict.startswith("FAILED") else ""
-        rows.append(f"<tr{cls}><td>{i}</td><td>{esc(p.commit[:12])}</td><td>{esc(p.date)}</td>"
-                    f"<td>{esc(p.folder.name)}</td><td>{esc(status)}</td>"
-                    f"<td>{esc(p.verdict)}</td></tr>")
-    return ("<table><thead><tr><th>#</th><th>commit</th><th>date</th><th>folder</th>"
-            "<th>jobs</th><th>bench check</th></tr></thead><tbody>"
-            + "".join(rows) + "</tbody></table>")
-
-
-def _figure(group, points: list[Point], metrics: list[str], info: dict):
-    """A row of panels, one per metric: a line per method over the runs, failing points
-    crossed out in red."""
-    plt = pyplot()
-    present = [m for m in metrics if m in set(group.metric)]
-    fig, axes = plt.subplots(1, len(present), figsize=(3.2 * len(present), 2.8),
-                             squeeze=False)
-    every = max(1, len(points) // 12)  # at most about a dozen labelled runs
-    ticks = list(range(0, len(points), every))
-    labels = [f"{points[i].commit[:7]}\n{points[i].date[:10]}" for i in ticks]
-    for ax, metric in zip(axes[0], present):
-        rows = group[group.metric == metric]
-        for method, line in rows.groupby("method", sort=True):
-            line = line.sort_values("run")
-            ax.plot(line.run, line.value.astype(float), marker="o", markersize=3,
-                    label=plot_text(method))
-            bad = line[line.mark != ""]
-            ax.plot(bad.run, bad.value.astype(float), "x", color="red", markersize=9,
-                    markeredgewidth=2)
-        unit, higher = info.get(metric, ("", None))
-        arrow = "" if higher is None else " (higher is better)" if higher else \
-            " (lower is better)"
-        ax.set_title(f"{metric}{arrow}", fontsize=8)
-        ax.set_ylabel(unit, fontsize=7)
-        ax.set_xticks(ticks, [plot_text(label) for label in labels], fontsize=6)
-        ax.grid(True, alpha=.3)
-    axes[0][0].legend(fontsize=6)
-    fig.tight_layout()
-    return fig
-
-
 def _job(record: dict) -> tuple:
     job = record["job"]
     return (job["model"], canonical_label(job["label"]), job["target_faces"],
@@ -237,3 +146,7 @@ def _job(record: dict) -> tuple:
 
 def _text(value) -> str:
     return value if isinstance(value, str) else ""
+
+
+def as_dict(value) -> dict:
+    return value if isinstance(value, dict) else {}

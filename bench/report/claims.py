@@ -17,10 +17,10 @@ from pathlib import Path
 from urllib.parse import quote
 
 from bench.harness.claims import ClaimResult
-from bench.report.page import figure, html_page, pyplot
-from bench.report.images import RunFiles, run_png
-from bench.report.table import esc
 from bench.io.atomic import write_atomic
+from bench.report.images import RunFiles, run_png
+from bench.report.page import figure, html_page, pyplot
+from bench.report.table import esc
 
 __all__ = ["write_reproduction"]
 

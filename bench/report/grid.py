@@ -11,19 +11,14 @@ from __future__ import annotations
 
 import math
 
-from bench.report.table import esc
 from bench.harness.results import evaluated, shading_label
+from bench.report import script
+from bench.report.table import esc
 
 __all__ = ["GRID_SCRIPT", "comparison_grids"]
 
 #: The toggle: a checkbox above each grid swaps the cells' images for the differences.
-GRID_SCRIPT = """<script>
-document.querySelectorAll('input.diff-toggle').forEach(function (box) {
-  box.addEventListener('change', function () {
-    document.getElementById(box.dataset.grid).classList.toggle('show-diff', box.checked);
-  });
-});
-</script>"""
+GRID_SCRIPT = script("grid.js")
 
 
 def _img(shown, alt: str, cls: str) -> str:

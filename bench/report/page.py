@@ -38,12 +38,6 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import RecordWarning
-from bench.report.grid import GRID_SCRIPT, comparison_grids, grid_links
-from bench.report.images import Inline, RunFiles, Shown, difference_png, run_png
-from bench.report.table import SCRIPT, summary_html
-from bench.report.table import cell as _cell
-from bench.report.table import esc as _esc
-from bench.report.viewer import VIEWER_SCRIPT, Viewers, single_file_note
 from bench.harness.results import (
     EVALUATED,
     OFF_TARGET_STATUS,
@@ -54,6 +48,13 @@ from bench.harness.results import (
     shading_label,
 )
 from bench.io.atomic import write_atomic
+from bench.report import asset, script
+from bench.report.grid import GRID_SCRIPT, comparison_grids, grid_links
+from bench.report.images import Inline, RunFiles, Shown, difference_png, run_png
+from bench.report.table import SCRIPT, summary_html
+from bench.report.table import cell as _cell
+from bench.report.table import esc as _esc
+from bench.report.viewer import VIEWER_SCRIPT, Viewers, single_file_note
 
 __all__ = ["ERRORS_SCRIPT", "PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_page",
            "plot_text", "pyplot", "write_report"]
@@ -62,58 +63,11 @@ __all__ = ["ERRORS_SCRIPT", "PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_p
 #: page holds more than one model's images.
 PAGE_LIMIT = 50
 
-_CSS = """
-body{font-family:system-ui,sans-serif;margin:2em;max-width:1400px;color:#222}
-h1{font-size:1.5em}h2{margin-top:2em;border-bottom:1px solid #ccc}
-table{border-collapse:collapse;font-size:.85em;margin:1em 0}
-td,th{border:1px solid #ddd;padding:3px 7px;text-align:right;white-space:nowrap}
-th{background:#f3f3f3}td:first-child,td:nth-child(2){text-align:left}
-.sortable thead tr:first-child th{cursor:pointer}.units th{font-weight:normal;font-size:.85em}
-th[aria-sort=ascending]::after{content:" \\25B2"}th[aria-sort=descending]::after{content:" \\25BC"}
-.best{font-weight:bold;background:#dff0d8}
-td.reason{max-width:30em;overflow:hidden;text-overflow:ellipsis}
-.failed{background:#fde2e2}.skipped{color:#888}.ok-off-target,.off-target{background:#fff4d6}
-.sheet{display:grid;grid-template-columns:repeat(4,260px);gap:4px;margin:.5em 0 1.5em}
-.scroll{overflow-x:auto}
-.sheet figure{margin:0;text-align:center;font-size:.75em}
-.sheet img{width:256px;height:256px}
-.plots img{max-width:48%}.history img{max-width:100%}.history{margin:0 0 1.5em}
-.artifact img{max-width:512px;image-rendering:pixelated}.artifact{margin:0 0 1.5em}
-pre{background:#f7f7f7;padding:.5em;white-space:pre-wrap;font-size:.8em}
-.note{color:#555;font-size:.9em}.warnings{background:#fff4d6;padding:.3em 1em}
-.grid img{width:128px;height:128px}.grid td{text-align:center;font-size:.8em}
-.grid .diff{display:none}.grid.show-diff .diff{display:inline}
-.grid.show-diff .view{display:none}
-.v3d-stage{position:relative;max-width:1120px;background:#808080;min-height:2px}
-.v3d-stage canvas{display:block}
-.v3d-stage span{position:absolute;top:4px;color:#fff;font-size:.8em;text-shadow:0 0 2px #000}
-.v3d-left{left:6px}.v3d-right{left:calc(50% + 6px)}.v3d-controls{margin:.5em 0}
-.v3d-stage::after{content:"";position:absolute;top:0;bottom:0;left:calc(50% - 1px);
-border-left:2px solid #fff}
-#script-errors{color:#900}
-"""
+_CSS = asset("report.css")
 
 #: In every page's head: an error of any script (or a promise nobody handled) is shown
 #: as text at the top of the page, never a silently blank part.
-ERRORS_SCRIPT = """<script>/* bench report: script errors shown in the page */
-(function () {
-  function show(text) {
-    var box = document.getElementById("script-errors");
-    if (!box) {
-      box = document.createElement("pre");
-      box.id = "script-errors";
-      document.body.insertBefore(box, document.body.firstChild);
-    }
-    box.textContent += "script error: " + text + "\n";
-  }
-  window.addEventListener("error", function (e) {
-    show(e.message + (e.filename ? " (" + e.filename + ":" + e.lineno + ")" : ""));
-  });
-  window.addEventListener("unhandledrejection", function (e) {
-    show(String(e.reason && e.reason.message || e.reason));
-  });
-})();
-</script>"""
+ERRORS_SCRIPT = script("errors.js")
 
 #: Summary-table columns left out when no record of the run defines them.
 _OPTIONAL_COLUMNS = ("exterior_share",)
