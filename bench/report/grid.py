@@ -21,6 +21,12 @@ __all__ = ["GRID_SCRIPT", "comparison_grids"]
 GRID_SCRIPT = script("grid.js")
 
 
+def _faces(record: dict) -> str:
+    """The result's face count as its grid cell says it ("?" when the record has none)."""
+    faces = (record.get("metrics") or {}).get("faces")
+    return str(faces) if faces is not None else "?"
+
+
 def _img(shown, alt: str, cls: str) -> str:
     if shown is None:
         return ""
@@ -71,7 +77,8 @@ def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
                 label = r["job"]["label"]
                 row.append(f"<td{mark}>{_img(c['result'], f'{label}, view {view}', 'view')}"
                            f"{_img(c['difference'], f'{label}, |ΔY| view {view}', 'diff')}"
-                           f"<br>{'' if v is None else f'd_RMS {v:.2f}'}</td>")
+                           f"<br>{'' if v is None else f'd_RMS {v:.2f}, '}"
+                           f"{esc(_faces(r))} faces</td>")
             rows.append("<tr>" + "".join(row) + "</tr>")
         parts.append(
             f"<h3>Comparison at {target} faces, evaluated {esc(shading)}</h3>"

@@ -23,6 +23,7 @@ import numpy as np
 from bench.harness.check import metric_info
 from bench.harness.results import OFF_TARGET_STATUS
 from bench.report import script
+from bench.report.cells import model_cell, number, resolved
 
 __all__ = ["SCRIPT", "cell", "esc", "summary_html"]
 
@@ -67,8 +68,9 @@ def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
     intervals = [record_intervals(r) if evaluated(r) else {} for r in records]
     rows = [_row(table.iloc[i], i, reasons[i], columns, best, links, intervals[i])
             for i in sorted(range(len(table)), key=lambda i: _STATUS_ORDER.get(table.status.iat[i], 2))]
-    heads = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
-    units = "".join(_unit_cell(c, metrics) for c in columns)
+    heads = "".join(f"<th{_more(c)}>{html.escape(c)}</th>" for c in columns)
+    units = "".join(_unit_cell(c, metrics).replace("<th", "<th" + _more(c), 1)
+                    for c in columns)
     left = ",".join(f"#summary {tag}:nth-child({columns.index(c) + 1})"
                     for c in _TEXT_COLUMNS if c in columns for tag in ("td", "th"))
     return (f"<style>#summary td{{text-align:right}}{left}{{text-align:left}}</style>"
@@ -77,12 +79,18 @@ def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
             f"<tbody>{''.join(rows)}</tbody></table></div>")
 
 
+#: The columns shown before the toggle, in this order: what answers "which method, at
+#: what cost"; every other column follows them, hidden until "all columns" is ticked.
+KEY_COLUMNS = ("model", "method", "shading", "target_faces", "faces", "d_rms", "flip", "ssim",
+               "seconds", "status", "reason")
+
+
 def _columns(columns: list[str], reasons: bool) -> list[str]:
-    """The table's columns: the status (and the reason, when some job has one) after the
-    budget, where a failure's row shows them without scrolling."""
-    at = columns.index("target_faces") + 1
-    front = ["status", "reason"] if reasons else ["status"]
-    return columns[:at] + front + [c for c in columns[at:] if c != "status"]
+    """The table's columns: :data:`KEY_COLUMNS` first (the reason only when some job has
+    one), where a failure's row shows its status without scrolling, then the rest."""
+    have = set(columns) | ({"reason"} if reasons else set())
+    front = [c for c in KEY_COLUMNS if c in have]
+    return front + [c for c in columns if c not in front]
 
 
 _HOW_TO_READ = (
@@ -92,8 +100,16 @@ _HOW_TO_READ = (
     "<span class='best'>marked</span> (the lowest or highest value, which need not be "
     "significantly better: bench compare tests it view by view). A value with per-view "
     "values shows its 95 % bootstrap interval over the views when pointed at. Failed and skipped jobs come first, with their "
-    "reason.</p><p><input id='filter' type='search' size='40' "
-    "placeholder='filter, e.g. bunny qslim' aria-label='filter the summary table'></p>")
+    "reason. A word <code>column:text</code> (<code>model:torus faces:655</code>) looks in "
+    "that column only. The key columns come first; the others are a tick away.</p><p>"
+    "<input id='filter' type='search' size='40' placeholder='filter, e.g. model:bunny qslim' "
+    "aria-label='filter the summary table'> <label><input type='checkbox' class='all-columns' "
+    "data-table='summary'> all columns</label></p>")
+
+
+def _more(column: str) -> str:
+    """The class of a column hidden behind the "all columns" toggle."""
+    return "" if column in KEY_COLUMNS else " class='more'"
 
 
 def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict,
@@ -104,13 +120,15 @@ def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict,
             cells.append(f"<td class='reason' title='{esc(reason)}'>{esc(reason)}</td>"
                          if reason else "<td></td>")
             continue
-        text = cell(row[c])
+        text = model_cell(row[c]) if c == "model" else number(c, row[c])
         if c == "model" and row[c] in links:
             text = f"<a href='{links[row[c]]}'>{text}</a>"
         lo_hi = (intervals or {}).get(c)
         title = (f" title='95 % interval over views: {lo_hi[0]:.4g} to {lo_hi[1]:.4g}'"
                  if lo_hi and text else "")
-        mark = " class='best'" if (i, c) in best else ""
+        classes = " ".join(k for k, on in (("best", (i, c) in best),
+                                           ("more", c not in KEY_COLUMNS)) if on)
+        mark = f" class='{classes}'" if classes else ""
         cells.append(f"<td{mark}{title}>{text}</td>")
     status = row["status"]
     cls = f" class='{esc(status.replace(', ', '-').replace(' ', '-'))}'" if status != "ok" else ""
@@ -158,7 +176,7 @@ def _best_cells(table, directions: dict[str, bool]) -> set[tuple[int, str]]:
     for _, group in ok.groupby(["model", "target_faces", "shading"], sort=False):
         for column, higher in directions.items():
             values = pd.to_numeric(group[column], errors="coerce").astype(float)
-            values = values[np.isfinite(values)]
+            values = values[np.isfinite(values)].map(lambda v, c=column: resolved(c, v))
             if values.nunique() < 2:
                 continue
             target = values.max() if higher else values.min()

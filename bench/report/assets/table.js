@@ -25,12 +25,33 @@
       th.addEventListener("click", function () { sortBy(table, th, i); });
     });
   });
+  /* the filter box: a plain word must appear somewhere in the row, a word
+     "column:text" (model:torus faces:655) in that column's cell */
   var box = document.getElementById("filter");
+  function matcher(word, names) {
+    var at = word.indexOf(":"), column = at > 0 ? names.indexOf(word.slice(0, at)) : -1;
+    var text = column >= 0 ? word.slice(at + 1) : word;
+    return function (row) {
+      var where = column >= 0 ? row.cells[column] : row;
+      return !!where && where.textContent.toLowerCase().indexOf(text) >= 0;
+    };
+  }
   if (box) box.addEventListener("input", function () {
-    var words = box.value.toLowerCase().split(/\s+/).filter(Boolean);
-    document.querySelectorAll("#summary tbody tr").forEach(function (row) {
-      var text = row.textContent.toLowerCase();
-      row.hidden = !words.every(function (w) { return text.indexOf(w) >= 0; });
+    var summary = document.getElementById("summary");
+    var names = Array.prototype.map.call(summary.tHead.rows[0].cells, function (th) {
+      return (th.dataset.column || th.textContent).trim().toLowerCase();
+    });
+    var tests = box.value.toLowerCase().split(/\s+/).filter(Boolean).map(function (w) {
+      return matcher(w, names);
+    });
+    Array.prototype.forEach.call(summary.tBodies[0].rows, function (row) {
+      row.hidden = !tests.every(function (test) { return test(row); });
+    });
+  });
+  /* the columns toggle: the key columns, or every column */
+  document.querySelectorAll("input.all-columns").forEach(function (toggle) {
+    toggle.addEventListener("change", function () {
+      document.getElementById(toggle.dataset.table).classList.toggle("all", toggle.checked);
     });
   });
   var wanted = /sort=(-?)([^&]+)/.exec(location.hash), summary = document.getElementById("summary");
