@@ -64,7 +64,7 @@ def legend_outside(ax, fig) -> None:
     handles, labels = ax.get_legend_handles_labels()
     if handles:
         ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0),
-                  borderaxespad=0, fontsize=8, frameon=False, ncol=1 if len(handles) <= 14 else 2)
+                  borderaxespad=0, fontsize=9, frameon=False, ncol=1 if len(handles) <= 14 else 2)
 
 
 def curves_figure(series: dict, column: str, title: str, styles: dict):
