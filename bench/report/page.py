@@ -318,10 +318,10 @@ def _quality_time(table, records: list[dict], out, slugs: dict) -> str:
                 if not values.gt(0).any():
                     continue
                 points = {}
-                for r, v in zip(group.itertuples(), values):
-                    secs = pd.to_numeric(r.seconds, errors="coerce")
-                    points.setdefault(r.method, []).append((float(secs), float(v),
-                                                             r.target_faces))
+                seconds = pd.to_numeric(group.seconds, errors="coerce")
+                for method, secs, v, target in zip(group.method, seconds, values,
+                                                   group.target_faces):
+                    points.setdefault(method, []).append((float(secs), float(v), target))
                 panels.append((f"{plot_text(model_text(model))}, {shading}: {name} vs time",
                                name, points))
             if not panels:
