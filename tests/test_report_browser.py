@@ -136,7 +136,11 @@ def test_the_report_opens_from_disk_with_no_broken_links(run, tmp_path):
     assert all('class="failed"' in r for r in rows[:2])  # failures first, with the reason
     assert all("deliberate failure" in r for r in rows[:2])
     images = dom.all("img")
-    assert len(images) >= 3 + 2 * 12  # 3 plots, 2 sheets of 12 views
+    # 3 curves, silhouettes and quality against time; the original's 4 sheet views once;
+    # 2 sheets of 4 renders and 4 difference images
+    assert len(images) == 5 + 4 + 2 * 8
+    assert [a["alt"] for a in images].count("original, view 0") == 1
+    assert text.count('<details class="sheets">') == 1  # the sheets start collapsed
     assert all(not a["src"].startswith("data:") for a in images)
     assert all(a.get("loading") == "lazy" for a in images)
     assert _broken(run, page, dom) == []
@@ -453,12 +457,13 @@ def test_the_scatter_shows_its_points_and_its_legend_outside_the_axes(run, tmp_p
         ".getBoundingClientRect(); };"
         "document.body.setAttribute('data-legend-left', r('legend_1').left);"
         "var right = 0; document.querySelectorAll('g[id^=axes_]').forEach(function (a) {"
-        " right = Math.max(right, a.getBoundingClientRect().right); });"
+        " right = Math.max(right, a.firstElementChild.getBoundingClientRect().right); });"
         "document.body.setAttribute('data-axes-right', right);"
         "</script></body></html>")
     dom = _Dom(_dump(page, tmp_path / "profile"))
     body = dom.all("body")[0]
-    # every axes (patch, spines, ticks, title) ends before the legend starts
+    # the legend starts right of every axes' frame (its background patch, the first
+    # element of its group; the legend itself is drawn inside the last axes' group)
     assert float(body["data-legend-left"]) >= float(body["data-axes-right"]) - 1
 
     shot = tmp_path / "scatter.png"
