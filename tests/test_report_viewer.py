@@ -22,11 +22,11 @@ import pytest
 import trimesh
 
 from bench.harness.jobs import Job, JobResult, _mesh_files, mesh_paths, store_result
-from bench.report.page import write_report
-from bench.report.viewer import VIEWER_SCRIPT, glb_problem, wrapper_path
 from bench.harness.results import load_records, write_record
 from bench.io.meshio import glb_bytes, load_mesh
 from bench.mesh import Mesh
+from bench.report.page import write_report
+from bench.report.viewer import VIEWER_SCRIPT, glb_problem, wrapper_path
 from conftest import SEAM_FACES, SEAM_POSITIONS, SEAM_UV, icosphere
 from conftest import made_up_record as record
 
