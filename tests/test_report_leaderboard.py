@@ -78,7 +78,7 @@ def test_off_target_results_are_listed_apart_never_ranked():
     (g,) = rank_groups(records)
     assert [r["job"]["label"] for r in g.ranked] == ["a", "b"] and g.off == [off]
     html = leaderboard_html(records)
-    assert re.search(r"<tr class='off-target'><td>off target</td>", html)
+    assert re.search(r"<tr class='off-target extra'><td>off target</td>", html)
 
 
 def test_values_under_the_resolution_rank_as_equal_and_show_as_zero():
@@ -213,3 +213,16 @@ def test_the_summary_puts_the_key_columns_first_and_hides_the_rest(tmp_path):
                          "flip", "ssim", "seconds"]
     assert "<th class='more'>peak_mb</th>" in table and "<th>d_rms</th>" in table
     assert "class='all-columns'" in page
+
+
+def test_a_long_ranking_shows_its_first_five_and_the_rest_behind_a_tick():
+    records = [views_record(f"m{k}", shifted(k)) for k in range(8)]
+    html = leaderboard_html(records)
+    table = html[html.index("<table id='lb-0'"):]
+    rows = re.findall(r"<tr( class='[^']*')?><td>([^<]*)</td>", table)
+    assert [rank for _, rank in rows] == ["1 (winner)", "2", "3", "4", "5", "6", "7", "8"]
+    assert ["extra" in cls for cls, _ in rows] == [False] * 5 + [True] * 3
+    assert "data-table='lb-0'> all 8 results (3 more)" in html
+    # ties for first are never hidden, however many
+    tied = [views_record(f"t{k}", alternating(0.01 * k)) for k in range(7)]
+    assert "extra" not in leaderboard_html(tied).split("</table>")[1]

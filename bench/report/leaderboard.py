@@ -211,19 +211,30 @@ def _row(g: Group, r: dict, rank, columns, styles, records, cls: str = "") -> st
     return f"<tr{cls}>{''.join(cells)}</tr>"
 
 
-def _group_html(g: Group, columns, styles, records) -> str:
+#: Ranked rows a leaderboard shows before its "all" toggle (every method tied for first
+#: is shown, however many).
+SHOWN_ROWS = 5
+
+
+def _group_html(g: Group, n: int, columns, styles, records) -> str:
     rows = []
-    for r, rank in zip(g.ranked, g.ranks):
+    for i, (r, rank) in enumerate(zip(g.ranked, g.ranks)):
         if rank == 1 and g.verdict == "winner":
             cls, shown = " class='winner'", "1 (winner)"
         elif rank == 1 and len(g.ranked) > 1:
             cls, shown = " class='tied'", "1 (tie)" if g.verdict == "tie" else "1 (untested)"
         else:
             cls, shown = "", str(rank)
+        if i >= SHOWN_ROWS and rank != 1:
+            cls = cls[:-1] + " extra'" if cls else " class='extra'"
         rows.append(_row(g, r, shown, columns, styles, records, cls))
     for r in g.off:
-        rows.append(_row(g, r, "off target", columns, styles, records, " class='off-target'"))
-    n = len(g.ranked)
+        rows.append(_row(g, r, "off target", columns, styles, records,
+                         " class='off-target extra'"))
+    hidden = sum("extra" in row.split(">", 1)[0] for row in rows)
+    toggle = (f"<label class='note'><input type='checkbox' class='all-columns' "
+              f"data-table='lb-{n}'> all {len(rows)} results ({hidden} more)</label>"
+              if hidden else "")
     if g.verdict == "winner":
         verdict = (f"<b>{html.escape(_label(g.ranked[0]))}</b> wins: lower d_RMS than each "
                    "of the others, significantly over the views")
@@ -234,11 +245,11 @@ def _group_html(g: Group, columns, styles, records) -> str:
     elif g.verdict == "untested":
         verdict = "first place not tested (a result has no per-view d_RMS)"
     else:
-        verdict = "one ranked method" if n == 1 else "no ranked method"
+        verdict = "one ranked method" if g.ranked else "no ranked method"
     return (f"<h3 class='lb-title'>{model_cell(g.model)}, {g.target} faces, "
             f"{html.escape(g.shading)}</h3><p class='note'>{verdict}.</p>"
-            f"<table class='leaderboard sortable'>{_head(columns)}<tbody>{''.join(rows)}"
-            "</tbody></table>")
+            f"<table id='lb-{n}' class='leaderboard sortable'>{_head(columns)}<tbody>"
+            f"{''.join(rows)}</tbody></table>{toggle}")
 
 
 def _summary(groups: list[Group], styles) -> str:
@@ -276,7 +287,8 @@ def leaderboard_html(records: list[dict]) -> str:
     labels = [_label(r) for g in groups for r in g.ranked + g.off]
     styles = method_styles(labels)
     columns = list(COLUMNS) + _extra([r for g in groups for r in g.ranked + g.off])
-    tables = "".join(_group_html(g, columns, styles, records) for g in groups)
+    tables = "".join(_group_html(g, n, columns, styles, records)
+                     for n, g in enumerate(groups))
     return ("<section id='leaderboard'><h2>Leaderboard</h2>"
             "<p class='note'>Per model, budget and shading, the methods that reached their "
             "target ranked by d_RMS (lower is better). A <span class='winner'>winner</span> "
@@ -284,6 +296,7 @@ def leaderboard_html(records: list[dict]) -> str:
             f"views (Wilcoxon signed-rank, Holm-corrected within the group, α = {ALPHA}); "
             "otherwise the methods the first place does not beat are "
             "<span class='tied'>tied</span> with it. Results off their target are listed "
-            "below each ranking, not in it. Across models: a method's mean rank, its wins, "
+            f"below each ranking, not in it; past the first {SHOWN_ROWS} a tick shows "
+            "the rest. Across models: a method's mean rank, its wins, "
             "ties for first and losses (groups where the first place beats it).</p>"
             f"{_summary(groups, styles)}{tables}</section>")

@@ -111,7 +111,7 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
     for note in refused:
         warnings.warn(note, RecordWarning, stacklevel=2)
     links = {m: f"model-{slugs[m]}.html" if split else f"#m-{slugs[m]}" for m in models}
-    summary = [leaderboard_html(records), _quality_time(table, records, out, slugs),
+    summary = [leaderboard_html(records),
                "<h2>All results</h2>", summary_html(_summary_table(table), records, links),
                _claims_html(records)]
     ends = ["<h2>Not applicable</h2>", _not_applicable(records),
@@ -188,7 +188,8 @@ def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
     else:
         keys = {id(r): _image_folders(run_dir, r)[0] for r in own if evaluated(r)}
         view = viewers.section(own, keys, slug, len(_shadings(own)) > 1)
-    return [f"<h2 id='m-{slug}'>{model_cell(model)}</h2>", _plots(ok, out, slug),
+    return [f"<h2 id='m-{slug}'>{model_cell(model)}</h2>", _quality_time(ok, model, out, slug),
+            _plots(ok, out, slug),
             grid_links(own, images, slug), _exterior_table(ok), _silhouette_plot(own, out, slug),
             comparison_grids(own, images, slug), view,
             _sheets(run_dir, own, refused, out, images)]
@@ -300,38 +301,35 @@ def _plots(table, out, slug: str) -> str:
     return "<div class='plots'>" + "".join(imgs) + "</div>"
 
 
-def _quality_time(table, records: list[dict], out, slugs: dict) -> str:
-    """Per model, d_RMS and FLIP against method seconds (log), each panel with its
-    Pareto front: which methods no other beats on both quality and time."""
+def _quality_time(table, model: str, out, slug: str) -> str:
+    """One model's d_RMS and FLIP against method seconds (log), a row of panels per
+    shading, each panel with its Pareto front: the results no other beats on both quality
+    and time. ``table``: the model's evaluated rows (those off target are left out)."""
     import pandas as pd
 
     ok = table[table.status == "ok"]
-    if ok.empty:
-        return ""
     styles = method_styles(ok.method)
     imgs = []
-    for model, rows in ok.groupby("model", sort=False):
-        for shading, group in rows.groupby("shading", sort=True):
-            panels = []
-            for column, name in (("d_rms", "d_RMS"), ("flip", "FLIP")):
-                values = pd.to_numeric(group[column], errors="coerce")
-                if not values.gt(0).any():
-                    continue
-                points = {}
-                seconds = pd.to_numeric(group.seconds, errors="coerce")
-                for method, secs, v, target in zip(group.method, seconds, values,
-                                                   group.target_faces):
-                    points.setdefault(method, []).append((float(secs), float(v), target))
-                panels.append((f"{plot_text(model_text(model))}, {shading}: {name} vs time",
-                               name, points))
-            if not panels:
+    for shading, group in ok.groupby("shading", sort=True):
+        panels = []
+        seconds = pd.to_numeric(group.seconds, errors="coerce")
+        for column, name in (("d_rms", "d_RMS"), ("flip", "FLIP")):
+            values = pd.to_numeric(group[column], errors="coerce")
+            if not values.gt(0).any():
                 continue
+            points = {}
+            for method, secs, v, target in zip(group.method, seconds, values,
+                                               group.target_faces):
+                points.setdefault(method, []).append((float(secs), float(v), target))
+            panels.append((f"{plot_text(model_text(model))}, {shading}: {name} vs time",
+                           name, points))
+        if panels:
             fig = quality_time_figure(panels, styles)
-            src = out.plot(fig, f"{slugs[model]}-quality-time-{_file_part(shading)}")
+            src = out.plot(fig, f"{slug}-quality-time-{_file_part(shading)}")
             imgs.append(_img(src, f"quality against time, {_esc(model_text(model))}", out))
     if not imgs:
         return ""
-    return ("<h2>Quality against time</h2><p class='note'>Each point is a result that "
+    return ("<h3>Quality against time</h3><p class='note'>Each point is a result that "
             "reached its target (one per budget); lower and further left is better. The "
             "dashed line is the Pareto front: the results no other beats on both error and "
             "seconds, its methods named in the legend. Seconds are the method's own, "
