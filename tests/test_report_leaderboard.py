@@ -226,3 +226,17 @@ def test_a_long_ranking_shows_its_first_five_and_the_rest_behind_a_tick():
     # ties for first are never hidden, however many
     tied = [views_record(f"t{k}", alternating(0.01 * k)) for k in range(7)]
     assert "extra" not in leaderboard_html(tied).split("</table>")[1]
+
+
+def test_a_point_that_reused_a_build_is_hollow_and_off_the_front():
+    from bench.report.plots import quality_time_figure
+
+    styles = method_styles(["a", "b"], builtin=[])
+    # b's second budget reused a's... b's own build: 0.004 s, which would lead the front
+    points = {"a": [(1.0, 10.0, False)], "b": [(5.0, 12.0, False), (0.004, 11.0, True)]}
+    fig = quality_time_figure([("t", "d_RMS", points)], styles)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert [x for x in labels if x.startswith("Pareto")] == ["Pareto front:\n  a"]
+    hollow = [c for c in fig.axes[0].collections if len(c.get_offsets()) == 1
+              and tuple(c.get_offsets()[0]) == (0.004, 11.0)]
+    assert len(hollow) == 1 and hollow[0].get_facecolors().size == 0

@@ -188,7 +188,10 @@ def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
     else:
         keys = {id(r): _image_folders(run_dir, r)[0] for r in own if evaluated(r)}
         view = viewers.section(own, keys, slug, len(_shadings(own)) > 1)
-    return [f"<h2 id='m-{slug}'>{model_cell(model)}</h2>", _quality_time(ok, model, out, slug),
+    reused = {(r["job"]["label"], r["job"]["target_faces"], shading_label(r["job"]["protocol"]))
+              for r in own if evaluated(r) and reuse_note(r, own)}
+    return [f"<h2 id='m-{slug}'>{model_cell(model)}</h2>",
+            _quality_time(ok, model, out, slug, reused),
             _plots(ok, out, slug),
             grid_links(own, images, slug), _exterior_table(ok), _silhouette_plot(own, out, slug),
             comparison_grids(own, images, slug), view,
@@ -301,10 +304,12 @@ def _plots(table, out, slug: str) -> str:
     return "<div class='plots'>" + "".join(imgs) + "</div>"
 
 
-def _quality_time(table, model: str, out, slug: str) -> str:
+def _quality_time(table, model: str, out, slug: str, reused: set = frozenset()) -> str:
     """One model's d_RMS and FLIP against method seconds (log), a row of panels per
     shading, each panel with its Pareto front: the results no other beats on both quality
-    and time. ``table``: the model's evaluated rows (those off target are left out)."""
+    and time. ``table``: the model's evaluated rows (those off target are left out);
+    ``reused``: (method, budget, shading) of jobs whose seconds leave out a build they
+    reused, drawn hollow and kept off the front."""
     import pandas as pd
 
     ok = table[table.status == "ok"]
@@ -320,7 +325,8 @@ def _quality_time(table, model: str, out, slug: str) -> str:
             points = {}
             for method, secs, v, target in zip(group.method, seconds, values,
                                                group.target_faces):
-                points.setdefault(method, []).append((float(secs), float(v), target))
+                points.setdefault(method, []).append(
+                    (float(secs), float(v), (method, target, shading) in reused))
             panels.append((f"{plot_text(model_text(model))}, {shading}: {name} vs time",
                            name, points))
         if panels:
@@ -333,7 +339,8 @@ def _quality_time(table, model: str, out, slug: str) -> str:
             "reached its target (one per budget); lower and further left is better. The "
             "dashed line is the Pareto front: the results no other beats on both error and "
             "seconds, its methods named in the legend. Seconds are the method's own, "
-            "compile time apart.</p><div class='plots qt'>" + "".join(imgs) + "</div>")
+            "compile time apart; a hollow point reused what another job built (its seconds "
+            "leave that build out) and is not on the front.</p><div class='plots qt'>" + "".join(imgs) + "</div>")
 
 
 def _file_part(text: str) -> str:

@@ -103,8 +103,10 @@ def pareto_front(points: list[tuple[float, float, str]]) -> list[tuple[float, fl
 
 def quality_time_figure(panels: list[tuple[str, str, dict]], styles: dict):
     """Error against method seconds, one panel per (title, metric name, ``points``), where
-    ``points`` maps a method label to its [(seconds, value, budget)]; each panel's
-    Pareto front drawn as a grey step line and the methods on it named."""
+    ``points`` maps a method label to its [(seconds, value, reused)]; each panel's
+    Pareto front drawn as a grey step line and the methods on it named. A ``reused``
+    point (its seconds leave out a build it reused) is drawn hollow and kept off the
+    front."""
     plt = pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False)
     for ax, (title, metric, points) in zip(axes[0], panels):
@@ -115,9 +117,15 @@ def quality_time_figure(panels: list[tuple[str, str, dict]], styles: dict):
             if not pts:
                 continue
             style = styles[label]
-            ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=style.colour,
+            own = [p for p in pts if not p[2]]
+            ax.scatter([p[0] for p in own], [p[1] for p in own], color=style.colour,
                        marker=style.marker, s=36, label=plot_text(label), zorder=3)
-            every += [(t, v, label) for t, v, _ in pts]
+            hollow = [p for p in pts if p[2]]
+            if hollow:
+                ax.scatter([p[0] for p in hollow], [p[1] for p in hollow], marker=style.marker,
+                           s=36, facecolors="none", edgecolors=style.colour, zorder=3,
+                           label=None if own else plot_text(label))
+            every += [(t, v, label) for t, v, _ in own]
         front = pareto_front(every)
         if front:
             ax.step([p[0] for p in front], [p[1] for p in front], where="post", color="#444",
