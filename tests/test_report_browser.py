@@ -428,7 +428,7 @@ def test_the_leaderboard_opens_the_page_and_nothing_scrolls_sideways_at_1400_px(
     assert int(body["data-scroll-width"]) <= int(body["data-inner-width"]) == 1400
     assert body["data-unloaded"] == "0"
     assert text.index('id="leaderboard"') < text.index('id="summary"')
-    assert {"class": "leaderboard sortable"} in dom.all("table")
+    assert {"id": "lb-0", "class": "leaderboard sortable"} in dom.all("table")
     assert any(a.get("id") == "across-models" for a in dom.all("table"))
     plots = [a for a in dom.all("img") if a["alt"].startswith("quality against time")]
     assert len(plots) == 1 and "quality-time" in plots[0]["src"]
