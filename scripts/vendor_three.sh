@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Rebuild the report's vendored three.js (bench/harness/vendor/three/) from the npm registry.
+# Rebuild the report's vendored three.js (bench/report/vendor/three/) from the npm registry.
 #
 # The report's 3D view opens from disk (file://), where Chromium loads neither ES modules
 # nor fetch()ed files, so three.js, its GLTFLoader and its OrbitControls are bundled into
@@ -19,7 +19,7 @@ esac
 
 THREE_VERSION=0.187.0
 ESBUILD_VERSION=0.28.2
-DEST=bench/harness/vendor/three
+DEST=bench/report/vendor/three
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -98,9 +98,9 @@ def without_own_scripts(page: str) -> str:
     """A report ``page`` without the report's own scripts (the error catcher, the summary
     table's and the comparison grids' toggle), which it must hold exactly once each, and
     the 3D view's (at most once): what is left may hold no script at all."""
-    from bench.harness.report import ERRORS_SCRIPT, SCRIPT
-    from bench.harness.report_grid import GRID_SCRIPT
-    from bench.harness.report_viewer import VIEWER_SCRIPT
+    from bench.report.page import ERRORS_SCRIPT, SCRIPT
+    from bench.report.grid import GRID_SCRIPT
+    from bench.report.viewer import VIEWER_SCRIPT
 
     for own in (ERRORS_SCRIPT, SCRIPT, GRID_SCRIPT):
         assert page.count(own) == 1

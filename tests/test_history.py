@@ -6,14 +6,15 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 
 import pandas as pd
 import pytest
 
-from bench.harness.report_history import write_history
 from bench.records.history import load_history
+from bench.report.history import write_history
 from metrics.protocol import Protocol
 
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
@@ -159,3 +160,22 @@ def test_check_as_github_action_benchmark_entries(three_runs, tmp_path):
     assert {e["name"]: e["value"] for e in bigger} == {
         "m<b> | qslim | 100 | flat: ssim": 0.9, "m<b> | quadric | 100 | flat: ssim": 0.95}
     assert {e["unit"] for e in smaller} == {"luminance (0-255)"}
+
+
+def test_runs_of_one_commit_get_distinct_labels_in_readable_type(three_runs, tmp_path):
+    from bench.report.history import run_labels
+
+    # the same commit run again on the same day (a re-run, another machine)
+    _run(three_runs / "d", _record("qslim", "c" * 40, 3, d_rms=5.0, ssim=0.9))
+    points = load_history([three_runs])
+    labels = run_labels(points)
+    assert len(set(labels)) == len(points) == 4
+    assert [p.commit[0] for p in points].count("c") == 2
+    out = tmp_path / "history"
+    write_history(points, out, ["d_rms"])
+    svg = next((out / "images" / "plots").glob("*.svg")).read_text()
+    # tick labels are text (svg.fonttype none): every run's number, no type under 9 px
+    for i in range(4):
+        assert f"#{i} " in svg
+    sizes = [float(s) for s in re.findall(r"font-size:\s*([0-9.]+)px", svg)]
+    assert sizes and min(sizes) >= 9

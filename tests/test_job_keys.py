@@ -124,7 +124,7 @@ def test_a_report_of_an_older_run_folder_finds_its_images(tmp_path):
 
     from PIL import Image
 
-    from bench.harness.report import write_report
+    from bench.report.page import write_report
 
     buf = io.BytesIO()
     Image.new("RGB", (4, 4), (200, 10, 10)).save(buf, format="PNG")

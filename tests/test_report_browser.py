@@ -136,7 +136,11 @@ def test_the_report_opens_from_disk_with_no_broken_links(run, tmp_path):
     assert all('class="failed"' in r for r in rows[:2])  # failures first, with the reason
     assert all("deliberate failure" in r for r in rows[:2])
     images = dom.all("img")
-    assert len(images) >= 3 + 2 * 12  # 3 plots, 2 sheets of 12 views
+    # 3 curves, silhouettes and quality against time; the original's 4 sheet views once;
+    # 2 sheets of 4 renders and 4 difference images
+    assert len(images) == 5 + 4 + 2 * 8
+    assert [a["alt"] for a in images].count("original, view 0") == 1
+    assert text.count('<details class="sheets">') == 1  # the sheets start collapsed
     assert all(not a["src"].startswith("data:") for a in images)
     assert all(a.get("loading") == "lazy" for a in images)
     assert _broken(run, page, dom) == []
@@ -356,3 +360,113 @@ def test_the_3d_view_says_why_it_cannot_draw(run, tmp_path, broken):
     why = "cannot load vendor/three.min.js" if broken == "no three.js" else \
         "WebGL is not available in this browser"
     assert why in status, status
+
+
+#: A script appended to a copy of a page: once it has loaded, the page's size, the window's
+#: width and the loaded width of every image, as attributes of <body> for --dump-dom.
+_PROBE = ("<script>addEventListener('load', function () {"
+          "var d = document.documentElement, b = document.body;"
+          "b.setAttribute('data-scroll-width', d.scrollWidth);"
+          "b.setAttribute('data-inner-width', innerWidth);"
+          "b.setAttribute('data-height', d.scrollHeight);"
+          "b.setAttribute('data-unloaded', Array.prototype.filter.call(document.images,"
+          " function (i) { return i.complete && i.naturalWidth === 0; }).length);"
+          "});</script></body>")
+
+
+def _probed(page: Path, extra: str = "") -> Path:
+    """A copy of ``page`` beside it (relative links still hold) with :data:`_PROBE` and
+    ``extra`` before ``</body>``."""
+    copy = page.with_name("probed-" + page.name)
+    copy.write_text(page.read_text().replace("</body>", extra + _PROBE))
+    return copy
+
+
+def _colour_present(shot: Path, colour: str) -> bool:
+    from PIL import Image
+
+    rgb = tuple(int(colour[i:i + 2], 16) for i in (1, 3, 5))
+    pixels = np.asarray(Image.open(shot).convert("RGB")).reshape(-1, 3)
+    return bool((np.abs(pixels.astype(int) - rgb).max(axis=1) <= 8).any())
+
+
+def test_the_error_box_shows_errors_thrown_on_purpose(run, tmp_path):
+    """The catcher in <head> shows an error thrown in <head> before <body> exists, one
+    thrown in <body> and a rejected promise nobody handled; the page as written has no
+    box (so the other tests' "no error box" can fail)."""
+    from bench.report.page import ERRORS_SCRIPT
+
+    page = run / "index.html"
+    text = page.read_text()
+    assert ERRORS_SCRIPT in text
+    broken = run / "thrown.html"
+    broken.write_text(
+        text.replace(ERRORS_SCRIPT, ERRORS_SCRIPT + "<script>null.inHead();</script>", 1)
+        .replace("</body>", "<script>throw new Error('thrown on purpose');</script>"
+                 "<script>Promise.reject(new Error('rejected on purpose'));</script></body>"))
+    dom = _dump(broken, tmp_path / "profile")
+    assert '<pre id="script-errors"' in dom
+    box = dom[dom.index('<pre id="script-errors"'):]
+    box = box[:box.index("</pre>")]
+    assert "thrown on purpose" in box and "rejected on purpose" in box
+    assert "inHead" in box  # null.inHead(): "Cannot read properties of null"
+    assert box.count("script error:") == 3
+    assert 'id="script-errors"' not in _dump(page, tmp_path / "profile")
+
+
+def test_the_leaderboard_opens_the_page_and_nothing_scrolls_sideways_at_1400_px(run, tmp_path):
+    """At 1,400 px the first screen shows the leaderboard (its method swatch in the
+    screenshot), the page has no horizontal scroll, the summary's key columns fit, and
+    every image (the quality-against-time plot among them) loads."""
+    from bench.report.styles import method_styles
+
+    probed = _probed(run / "index.html")
+    text = _chromium(tmp_path / "profile", "--window-size=1400,900", "--hide-scrollbars",
+                     "--virtual-time-budget=10000", "--dump-dom", probed.as_uri()).stdout
+    dom = _Dom(text)
+    body = dom.all("body")[0]
+    assert int(body["data-scroll-width"]) <= int(body["data-inner-width"]) == 1400
+    assert body["data-unloaded"] == "0"
+    assert text.index('id="leaderboard"') < text.index('id="summary"')
+    assert {"id": "lb-0", "class": "leaderboard sortable"} in dom.all("table")
+    assert any(a.get("id") == "across-models" for a in dom.all("table"))
+    plots = [a for a in dom.all("img") if a["alt"].startswith("quality against time")]
+    assert len(plots) == 1 and "quality-time" in plots[0]["src"]
+    assert 'id="script-errors"' not in text
+
+    shot = tmp_path / "leaderboard.png"
+    _chromium(tmp_path / "profile", "--window-size=1400,900", "--hide-scrollbars",
+              f"--screenshot={shot}", (run / "index.html").as_uri())
+    assert _colour_present(shot, method_styles(["qslim"])["qslim"].colour)
+
+
+def test_the_scatter_shows_its_points_and_its_legend_outside_the_axes(run, tmp_path):
+    """The quality-against-time plot, opened as the browser draws it: qslim's points in
+    qslim's colour, the Pareto front named, the legend right of the axes, tick labels
+    in plain digits."""
+    from bench.report.styles import method_styles
+
+    (svg,) = (run / "images" / "plots").glob("*quality-time*.svg")
+    source = svg.read_text()
+    assert "Pareto front" in source and "qslim" in source
+    assert "10^" not in source and "\\times" not in source and "×" not in source
+    page = tmp_path / "plot.html"
+    page.write_text(
+        "<!doctype html><html><body style='margin:0'>" + source[source.index("<svg"):]
+        + "<script>var r = function (id) { return document.getElementById(id)"
+        ".getBoundingClientRect(); };"
+        "document.body.setAttribute('data-legend-left', r('legend_1').left);"
+        "var right = 0; document.querySelectorAll('g[id^=axes_]').forEach(function (a) {"
+        " right = Math.max(right, a.firstElementChild.getBoundingClientRect().right); });"
+        "document.body.setAttribute('data-axes-right', right);"
+        "</script></body></html>")
+    dom = _Dom(_dump(page, tmp_path / "profile"))
+    body = dom.all("body")[0]
+    # the legend starts right of every axes' frame (its background patch, the first
+    # element of its group; the legend itself is drawn inside the last axes' group)
+    assert float(body["data-legend-left"]) >= float(body["data-axes-right"]) - 1
+
+    shot = tmp_path / "scatter.png"
+    _chromium(tmp_path / "profile", "--window-size=1200,500", f"--screenshot={shot}",
+              svg.as_uri())
+    assert _colour_present(shot, method_styles(["qslim"])["qslim"].colour)

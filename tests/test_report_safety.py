@@ -18,9 +18,9 @@ from pathlib import Path
 import pytest
 
 from bench.core.errors import InputError
-from bench.harness.report import write_report
-from bench.harness.report_images import RunFiles, run_file
 from bench.records.results import load_records, write_record, write_table
+from bench.report.images import RunFiles, run_file
+from bench.report.page import write_report
 from conftest import made_up_record as record
 from conftest import without_own_scripts
 from metrics.protocol import Protocol

@@ -21,16 +21,16 @@ import numpy as np
 import pytest
 import trimesh
 
-from bench.core.mesh import Mesh
-from bench.harness.report import write_report
-from bench.harness.report_viewer import VIEWER_SCRIPT, glb_problem, wrapper_path
-from bench.io.meshio import glb_bytes, load_mesh
-from bench.records.results import load_records, write_record
 from bench.run.jobs import Job, JobResult, _mesh_files, mesh_paths, store_result
+from bench.records.results import load_records, write_record
+from bench.io.meshio import glb_bytes, load_mesh
+from bench.core.mesh import Mesh
+from bench.report.page import write_report
+from bench.report.viewer import VIEWER_SCRIPT, glb_problem, wrapper_path
 from conftest import SEAM_FACES, SEAM_POSITIONS, SEAM_UV, icosphere
 from conftest import made_up_record as record
 
-VENDOR = Path(__file__).parent.parent / "bench" / "harness" / "vendor" / "three"
+VENDOR = Path(__file__).parent.parent / "bench" / "report" / "vendor" / "three"
 
 
 def textured_seam() -> Mesh:

@@ -129,7 +129,7 @@ def test_a_record_of_the_next_schema_is_refused_and_bad_intervals_are_named(tmp_
 
 
 def test_the_summary_table_shows_the_interval_when_pointed_at():
-    from bench.harness.report_table import summary_html
+    from bench.report.table import summary_html
     from bench.records.results import records_table
 
     records = [_consistent(made_up_record("a"), VIEWS)]

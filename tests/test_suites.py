@@ -228,7 +228,7 @@ def test_undefined_exterior_share_is_never_a_regression():
 
 
 def test_report_shows_each_evaluation_shading_and_the_exterior_share(tmp_path):
-    from bench.harness.report import write_report
+    from bench.report.page import write_report
 
     records = [_record("q", FLAT, 5.0), _record("q", GOURAUD_SPEC, 7.0),
                _record("q", FLAT, 4.0, model="interior", exterior_share=0.95)]

@@ -263,7 +263,7 @@ def test_result_status_is_off_target_beyond_ten_percent():
 def test_an_off_target_result_is_never_marked_best():
     import pandas as pd
 
-    from bench.harness.report_table import _best_cells
+    from bench.report.table import _best_cells
 
     table = pd.DataFrame({"model": ["m", "m", "m"], "target_faces": [100, 100, 100],
                           "shading": ["flat"] * 3, "d_rms": [1.0, 2.0, 0.5],

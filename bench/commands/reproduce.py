@@ -80,7 +80,7 @@ def run(args) -> int:
                for s in suites}
     results = [evaluate_claim(c, records[c.suite]) for c in claims]
     _write_csv(out, results)
-    from bench.harness.report_claims import write_reproduction
+    from bench.report.claims import write_reproduction
 
     page = write_reproduction(out, results, seconds)
     width = max(len(c.name) for c in claims)

@@ -303,7 +303,7 @@ def finish(out: Path, build_report: bool = True, single_file: bool = False) -> i
         warnings.warn(note, RecordWarning, stacklevel=2)
     written = [_writing(out / "results.csv", lambda: write_table(out, records))]
     if build_report:  # every file is written before anything is said about the run
-        from bench.harness.report import write_report
+        from bench.report.page import write_report
 
         written.append(_writing(out / "index.html", lambda: write_report(
             out, records, skipped, single_file=single_file)))

@@ -13,7 +13,7 @@ named twice (by two spellings, or a link) is one point. A point is checked as
 file, against that baseline, as CI does with a committed one): a metric marked
 ``worse``, ``not finite`` or ``newly failing`` there is a failing point, and the check's
 verdict is the point's. The page that draws them is
-:mod:`bench.harness.report_history`.
+:mod:`bench.report.history`.
 
 Run folders may come from anywhere, so they are read as the report reads them
 (:func:`~bench.records.results.load_records` with bad records left out and named).
@@ -147,3 +147,7 @@ def _environment(record: dict) -> dict:
 
 def _text(value) -> str:
     return value if isinstance(value, str) else ""
+
+
+def as_dict(value) -> dict:
+    return value if isinstance(value, dict) else {}

@@ -6,7 +6,7 @@ per claim its evidence: the rows it was decided on, the two methods' values over
 budgets (when it has several), and the first protocol view of the worst row for each
 method, linking the full image of the suite's run folder ``DIR/<suite>/`` (whose own
 report has every view and difference image). Everything shown comes from records, so
-it is escaped and images pass :func:`~bench.harness.report_images.run_png` as in the
+it is escaped and images pass :func:`~bench.report.images.run_png` as in the
 run report.
 """
 
@@ -16,11 +16,11 @@ import math
 from pathlib import Path
 from urllib.parse import quote
 
-from bench.harness.report import figure, html_page, pyplot
-from bench.harness.report_images import RunFiles, run_png
-from bench.harness.report_table import esc
-from bench.io.atomic import write_atomic
 from bench.records.claims import ClaimResult
+from bench.io.atomic import write_atomic
+from bench.report.images import RunFiles, run_png
+from bench.report.page import figure, html_page, pyplot
+from bench.report.table import esc
 
 __all__ = ["write_reproduction"]
 

@@ -3,7 +3,7 @@ with a row per sheet view and a column per method (the original first), each cel
 method's rendered view with its per-view d_RMS, the best of each row marked, and a
 toggle that shows the |ΔY| difference images instead.
 
-The images are the sheets' own (:func:`bench.harness.report.sheet_images`), so a grid
+The images are the sheets' own (:func:`bench.report.page.sheet_images`), so a grid
 costs no rendering and no image file of its own.
 """
 
@@ -11,19 +11,20 @@ from __future__ import annotations
 
 import math
 
-from bench.harness.report_table import esc
 from bench.records.results import evaluated, shading_label
+from bench.report import script
+from bench.report.table import esc
 
 __all__ = ["GRID_SCRIPT", "comparison_grids"]
 
 #: The toggle: a checkbox above each grid swaps the cells' images for the differences.
-GRID_SCRIPT = """<script>
-document.querySelectorAll('input.diff-toggle').forEach(function (box) {
-  box.addEventListener('change', function () {
-    document.getElementById(box.dataset.grid).classList.toggle('show-diff', box.checked);
-  });
-});
-</script>"""
+GRID_SCRIPT = script("grid.js")
+
+
+def _faces(record: dict) -> str:
+    """The result's face count as its grid cell says it ("?" when the record has none)."""
+    faces = (record.get("metrics") or {}).get("faces")
+    return str(faces) if faces is not None else "?"
 
 
 def _img(shown, alt: str, cls: str) -> str:
@@ -56,7 +57,7 @@ def grid_links(records: list[dict], images: dict, slug: str) -> str:
 
 def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
     """The grids of one model's ok ``records``; ``images`` maps ``id(record)`` to its
-    :func:`~bench.harness.report.sheet_images` (views in sheet order)."""
+    :func:`~bench.report.page.sheet_images` (views in sheet order)."""
     parts = []
     for grid_id, target, shading, group in _grids(records, images, slug):
         head = "<th>view</th><th>original</th>" + "".join(
@@ -76,7 +77,8 @@ def comparison_grids(records: list[dict], images: dict, slug: str) -> str:
                 label = r["job"]["label"]
                 row.append(f"<td{mark}>{_img(c['result'], f'{label}, view {view}', 'view')}"
                            f"{_img(c['difference'], f'{label}, |ΔY| view {view}', 'diff')}"
-                           f"<br>{'' if v is None else f'd_RMS {v:.2f}'}</td>")
+                           f"<br>{'' if v is None else f'd_RMS {v:.2f}, '}"
+                           f"{esc(_faces(r))} faces</td>")
             rows.append("<tr>" + "".join(row) + "</tr>")
         parts.append(
             f"<h3>Comparison at {target} faces, evaluated {esc(shading)}</h3>"

@@ -22,50 +22,12 @@ import numpy as np
 
 from bench.records.check import metric_info
 from bench.records.results import OFF_TARGET_STATUS
+from bench.report import script
+from bench.report.cells import model_cell, number, resolved
 
 __all__ = ["SCRIPT", "cell", "esc", "summary_html"]
 
-SCRIPT = """<script>/* bench report: sortable and filterable tables */
-(function () {
-  function key(cell) {
-    var text = cell ? cell.textContent.trim() : "", n = Number(text);
-    return text === "" ? null : isNaN(n) ? text.toLowerCase() : n;
-  }
-  function compare(a, b) {
-    if (typeof a !== typeof b) return typeof a === "number" ? -1 : 1;
-    return a < b ? -1 : a > b ? 1 : 0;
-  }
-  function sortBy(table, th, i) {
-    var up = th.getAttribute("aria-sort") !== "ascending", body = table.tBodies[0];
-    Array.prototype.forEach.call(th.parentNode.cells, function (h) { h.removeAttribute("aria-sort"); });
-    th.setAttribute("aria-sort", up ? "ascending" : "descending");
-    var rows = Array.prototype.slice.call(body.rows);
-    rows.sort(function (r, s) {
-      var a = key(r.cells[i]), b = key(s.cells[i]);
-      if (a === null || b === null) return (a === null) - (b === null);
-      return up ? compare(a, b) : compare(b, a);
-    });
-    rows.forEach(function (r) { body.appendChild(r); });
-  }
-  document.querySelectorAll("table.sortable").forEach(function (table) {
-    Array.prototype.forEach.call(table.tHead.rows[0].cells, function (th, i) {
-      th.addEventListener("click", function () { sortBy(table, th, i); });
-    });
-  });
-  var box = document.getElementById("filter");
-  if (box) box.addEventListener("input", function () {
-    var words = box.value.toLowerCase().split(/\\s+/).filter(Boolean);
-    document.querySelectorAll("#summary tbody tr").forEach(function (row) {
-      var text = row.textContent.toLowerCase();
-      row.hidden = !words.every(function (w) { return text.indexOf(w) >= 0; });
-    });
-  });
-  var wanted = /sort=(-?)([^&]+)/.exec(location.hash), summary = document.getElementById("summary");
-  if (wanted && summary) Array.prototype.forEach.call(summary.tHead.rows[0].cells, function (th) {
-    if (th.textContent === decodeURIComponent(wanted[2])) { th.click(); if (wanted[1]) th.click(); }
-  });
-})();
-</script>"""
+SCRIPT = script("table.js")
 
 #: Units of the summary's columns that are not metrics (a metric's is its registration's).
 _UNITS = {"target_faces": "faces", "seconds": "s", "tri_per_s": "triangles/s", "peak_mb": "MB"}
@@ -106,8 +68,9 @@ def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
     intervals = [record_intervals(r) if evaluated(r) else {} for r in records]
     rows = [_row(table.iloc[i], i, reasons[i], columns, best, links, intervals[i])
             for i in sorted(range(len(table)), key=lambda i: _STATUS_ORDER.get(table.status.iat[i], 2))]
-    heads = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
-    units = "".join(_unit_cell(c, metrics) for c in columns)
+    heads = "".join(f"<th{_more(c)}>{html.escape(c)}</th>" for c in columns)
+    units = "".join(_unit_cell(c, metrics).replace("<th", "<th" + _more(c), 1)
+                    for c in columns)
     left = ",".join(f"#summary {tag}:nth-child({columns.index(c) + 1})"
                     for c in _TEXT_COLUMNS if c in columns for tag in ("td", "th"))
     return (f"<style>#summary td{{text-align:right}}{left}{{text-align:left}}</style>"
@@ -116,12 +79,18 @@ def summary_html(table, records: list[dict], links: dict[str, str]) -> str:
             f"<tbody>{''.join(rows)}</tbody></table></div>")
 
 
+#: The columns shown before the toggle, in this order: what answers "which method, at
+#: what cost"; every other column follows them, hidden until "all columns" is ticked.
+KEY_COLUMNS = ("model", "method", "shading", "target_faces", "faces", "d_rms", "flip", "ssim",
+               "seconds", "status", "reason")
+
+
 def _columns(columns: list[str], reasons: bool) -> list[str]:
-    """The table's columns: the status (and the reason, when some job has one) after the
-    budget, where a failure's row shows them without scrolling."""
-    at = columns.index("target_faces") + 1
-    front = ["status", "reason"] if reasons else ["status"]
-    return columns[:at] + front + [c for c in columns[at:] if c != "status"]
+    """The table's columns: :data:`KEY_COLUMNS` first (the reason only when some job has
+    one), where a failure's row shows its status without scrolling, then the rest."""
+    have = set(columns) | ({"reason"} if reasons else set())
+    front = [c for c in KEY_COLUMNS if c in have]
+    return front + [c for c in columns if c not in front]
 
 
 _HOW_TO_READ = (
@@ -131,8 +100,16 @@ _HOW_TO_READ = (
     "<span class='best'>marked</span> (the lowest or highest value, which need not be "
     "significantly better: bench compare tests it view by view). A value with per-view "
     "values shows its 95 % bootstrap interval over the views when pointed at. Failed and skipped jobs come first, with their "
-    "reason.</p><p><input id='filter' type='search' size='40' "
-    "placeholder='filter, e.g. bunny qslim' aria-label='filter the summary table'></p>")
+    "reason. A word <code>column:text</code> (<code>model:torus faces:655</code>) looks in "
+    "that column only. The key columns come first; the others are a tick away.</p><p>"
+    "<input id='filter' type='search' size='40' placeholder='filter, e.g. model:bunny qslim' "
+    "aria-label='filter the summary table'> <label><input type='checkbox' class='all-columns' "
+    "data-table='summary'> all columns</label></p>")
+
+
+def _more(column: str) -> str:
+    """The class of a column hidden behind the "all columns" toggle."""
+    return "" if column in KEY_COLUMNS else " class='more'"
 
 
 def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict,
@@ -143,13 +120,15 @@ def _row(row, i: int, reason: str, columns: list[str], best: set, links: dict,
             cells.append(f"<td class='reason' title='{esc(reason)}'>{esc(reason)}</td>"
                          if reason else "<td></td>")
             continue
-        text = cell(row[c])
+        text = model_cell(row[c]) if c == "model" else number(c, row[c])
         if c == "model" and row[c] in links:
             text = f"<a href='{links[row[c]]}'>{text}</a>"
         lo_hi = (intervals or {}).get(c)
         title = (f" title='95 % interval over views: {lo_hi[0]:.4g} to {lo_hi[1]:.4g}'"
                  if lo_hi and text else "")
-        mark = " class='best'" if (i, c) in best else ""
+        classes = " ".join(k for k, on in (("best", (i, c) in best),
+                                           ("more", c not in KEY_COLUMNS)) if on)
+        mark = f" class='{classes}'" if classes else ""
         cells.append(f"<td{mark}{title}>{text}</td>")
     status = row["status"]
     cls = f" class='{esc(status.replace(', ', '-').replace(' ', '-'))}'" if status != "ok" else ""
@@ -197,7 +176,7 @@ def _best_cells(table, directions: dict[str, bool]) -> set[tuple[int, str]]:
     for _, group in ok.groupby(["model", "target_faces", "shading"], sort=False):
         for column, higher in directions.items():
             values = pd.to_numeric(group[column], errors="coerce").astype(float)
-            values = values[np.isfinite(values)]
+            values = values[np.isfinite(values)].map(lambda v, c=column: resolved(c, v))
             if values.nunique() < 2:
                 continue
             target = values.max() if higher else values.min()

@@ -1,8 +1,8 @@
-"""The page of ``bench history``: a table of the runs and, per model, budget and
-shading, a row of panels (one per metric) with a line per method over the runs, the
-points ``bench check`` would have failed crossed out in red. The points themselves come
-from :func:`bench.records.history.load_history`; every string from a record is escaped
-where it is written."""
+"""The page of ``bench history`` (:mod:`bench.records.history` reads and checks the
+runs): ``OUT/index.html`` with a table of the runs and, per model, budget and shading, a
+row of panels (one per metric) with a line per method over the runs, the points where
+``bench check`` would have failed crossed out in red; ``OUT/history.csv`` holds the data.
+"""
 
 from __future__ import annotations
 
@@ -11,12 +11,14 @@ from collections import Counter
 from pathlib import Path
 
 from bench.core.errors import RecordWarning
-from bench.harness.report import figure, html_page, plot_text, pyplot
-from bench.harness.report_images import RunFiles, Shown
-from bench.harness.report_table import esc
-from bench.io.atomic import write_atomic
 from bench.records.check import metric_info
 from bench.records.history import Point, history_table
+from bench.io.atomic import write_atomic
+from bench.report.images import RunFiles, Shown
+from bench.report.page import figure, html_page
+from bench.report.plots import legend_outside, plot_text, pyplot
+from bench.report.styles import method_styles
+from bench.report.table import esc
 
 __all__ = ["write_history"]
 
@@ -74,32 +76,41 @@ def _runs_table(points: list[Point]) -> str:
             + "".join(rows) + "</tbody></table>")
 
 
+def run_labels(points: list[Point]) -> list[str]:
+    """The x label of each run: its number in the table of runs, its commit and its date;
+    runs of one commit (a re-run, a run on another machine) differ by their number."""
+    return [f"#{i} {p.commit[:7]}\n{p.date[:10]}" for i, p in enumerate(points)]
+
+
 def _figure(group, points: list[Point], metrics: list[str], info: dict):
-    """A row of panels, one per metric: a line per method over the runs, failing points
-    crossed out in red."""
+    """A row of panels, one per metric: a line per method over the runs (each method in
+    its report style), failing points crossed out in red, the legend right of the
+    panels."""
     plt = pyplot()
     present = [m for m in metrics if m in set(group.metric)]
-    fig, axes = plt.subplots(1, len(present), figsize=(3.2 * len(present), 2.8),
+    fig, axes = plt.subplots(1, len(present), figsize=(4.4 * len(present), 3.4),
                              squeeze=False)
-    every = max(1, len(points) // 12)  # at most about a dozen labelled runs
+    every = max(1, len(points) // 8)  # at most about 8 labelled runs: they stay readable
     ticks = list(range(0, len(points), every))
-    labels = [f"{points[i].commit[:7]}\n{points[i].date[:10]}" for i in ticks]
+    labels = run_labels(points)
+    styles = method_styles(group.method)
     for ax, metric in zip(axes[0], present):
         rows = group[group.metric == metric]
         for method, line in rows.groupby("method", sort=True):
             line = line.sort_values("run")
-            ax.plot(line.run, line.value.astype(float), marker="o", markersize=3,
-                    label=plot_text(method))
+            ax.plot(line.run, line.value.astype(float), markersize=5,
+                    label=plot_text(method), **styles[method].plot_kwargs())
             bad = line[line.mark != ""]
-            ax.plot(bad.run, bad.value.astype(float), "x", color="red", markersize=9,
+            ax.plot(bad.run, bad.value.astype(float), "x", color="red", markersize=10,
                     markeredgewidth=2)
         unit, higher = info.get(metric, ("", None))
         arrow = "" if higher is None else " (higher is better)" if higher else \
             " (lower is better)"
-        ax.set_title(f"{metric}{arrow}", fontsize=8)
-        ax.set_ylabel(unit, fontsize=7)
-        ax.set_xticks(ticks, [plot_text(label) for label in labels], fontsize=6)
+        ax.set_title(f"{metric}{arrow}", fontsize=11)
+        ax.set_ylabel(unit, fontsize=10)
+        ax.set_xticks(ticks, [plot_text(labels[i]) for i in ticks], fontsize=9)
+        ax.tick_params(axis="y", labelsize=9)
         ax.grid(True, alpha=.3)
-    axes[0][0].legend(fontsize=6)
+    legend_outside(axes[0][-1], fig)
     fig.tight_layout()
     return fig

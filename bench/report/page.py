@@ -2,15 +2,15 @@
 jobs one page per model (``DIR/model-<slug>.html``) linked from it.
 
 Sections follow Lindstrom & Turk 2000: a summary table (sortable and filterable,
-:mod:`bench.harness.report_table`), per model the d_RMS, FLIP and Hausdorff curves over face
+:mod:`bench.report.table`), per model the d_RMS, FLIP and Hausdorff curves over face
 count (Figures 5 and 6), silhouette histograms (Figure 7), comparison grids of the
-methods side by side (:mod:`bench.harness.report_grid`), a 3D view of the original and
-any LOD orbited together (:mod:`bench.harness.report_viewer`), image sheets with
+methods side by side (:mod:`bench.report.grid`), a 3D view of the original and
+any LOD orbited together (:mod:`bench.report.viewer`), image sheets with
 difference images (Plate 13), a timing table (Table 1), and the failures with their
 errors. Every page catches its scripts' errors and shows them at its top.
 
 Images are files of the run folder linked by relative URLs (thumbnails linking to the
-full PNGs, plots as SVG; :mod:`bench.harness.report_images`), so the folder opens from
+full PNGs, plots as SVG; :mod:`bench.report.images`), so the folder opens from
 disk with no server and can be zipped or published as it is; ``single_file=True``
 (``--single-file``) inlines every image as base64 instead, in one page, and leaves the
 3D view out with a note (it needs the run folder's meshes and three.js as files).
@@ -19,8 +19,8 @@ A run folder may come from someone else, so nothing in it is trusted: every stri
 a record is HTML-escaped where it is written, only records that pass
 :func:`~bench.records.results.record_problem` are shown, and images are read only from
 inside the run folder and only when they are PNG files
-(:func:`~bench.harness.report_images.run_png`), meshes likewise and only as whole,
-self-contained GLB files (:func:`~bench.harness.report_viewer.run_glb`). What is left
+(:func:`~bench.report.images.run_png`), meshes likewise and only as whole,
+self-contained GLB files (:func:`~bench.report.viewer.run_glb`). What is left
 out for any of these reasons is listed under "Warnings" at the top of the report and
 given as a :class:`~bench.core.errors.RecordWarning`.
 """
@@ -35,16 +35,7 @@ import warnings
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
-
 from bench.core.errors import RecordWarning
-from bench.harness.report_grid import GRID_SCRIPT, comparison_grids, grid_links
-from bench.harness.report_images import Inline, RunFiles, Shown, difference_png, run_png
-from bench.harness.report_table import SCRIPT, summary_html
-from bench.harness.report_table import cell as _cell
-from bench.harness.report_table import esc as _esc
-from bench.harness.report_viewer import VIEWER_SCRIPT, Viewers, single_file_note
-from bench.io.atomic import write_atomic
 from bench.records.results import (
     EVALUATED,
     OFF_TARGET_STATUS,
@@ -54,6 +45,24 @@ from bench.records.results import (
     records_table,
     shading_label,
 )
+from bench.io.atomic import write_atomic
+from bench.report import asset, script
+from bench.report.cells import model_cell, model_text, number
+from bench.report.grid import GRID_SCRIPT, comparison_grids, grid_links
+from bench.report.images import Inline, RunFiles, Shown, difference_png, run_png
+from bench.report.leaderboard import leaderboard_html, reuse_note
+from bench.report.plots import (
+    curves_figure,
+    plot_text,
+    pyplot,
+    quality_time_figure,
+    silhouette_figure,
+)
+from bench.report.styles import method_styles
+from bench.report.table import SCRIPT, summary_html
+from bench.report.table import cell as _cell
+from bench.report.table import esc as _esc
+from bench.report.viewer import VIEWER_SCRIPT, Viewers, single_file_note
 
 __all__ = ["ERRORS_SCRIPT", "PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_page",
            "plot_text", "pyplot", "write_report"]
@@ -62,58 +71,11 @@ __all__ = ["ERRORS_SCRIPT", "PAGE_LIMIT", "SCRIPT", "as_dict", "figure", "html_p
 #: page holds more than one model's images.
 PAGE_LIMIT = 50
 
-_CSS = """
-body{font-family:system-ui,sans-serif;margin:2em;max-width:1400px;color:#222}
-h1{font-size:1.5em}h2{margin-top:2em;border-bottom:1px solid #ccc}
-table{border-collapse:collapse;font-size:.85em;margin:1em 0}
-td,th{border:1px solid #ddd;padding:3px 7px;text-align:right;white-space:nowrap}
-th{background:#f3f3f3}td:first-child,td:nth-child(2){text-align:left}
-.sortable thead tr:first-child th{cursor:pointer}.units th{font-weight:normal;font-size:.85em}
-th[aria-sort=ascending]::after{content:" \\25B2"}th[aria-sort=descending]::after{content:" \\25BC"}
-.best{font-weight:bold;background:#dff0d8}
-td.reason{max-width:30em;overflow:hidden;text-overflow:ellipsis}
-.failed{background:#fde2e2}.skipped{color:#888}.ok-off-target,.off-target{background:#fff4d6}
-.sheet{display:grid;grid-template-columns:repeat(4,260px);gap:4px;margin:.5em 0 1.5em}
-.scroll{overflow-x:auto}
-.sheet figure{margin:0;text-align:center;font-size:.75em}
-.sheet img{width:256px;height:256px}
-.plots img{max-width:48%}.history img{max-width:100%}.history{margin:0 0 1.5em}
-.artifact img{max-width:512px;image-rendering:pixelated}.artifact{margin:0 0 1.5em}
-pre{background:#f7f7f7;padding:.5em;white-space:pre-wrap;font-size:.8em}
-.note{color:#555;font-size:.9em}.warnings{background:#fff4d6;padding:.3em 1em}
-.grid img{width:128px;height:128px}.grid td{text-align:center;font-size:.8em}
-.grid .diff{display:none}.grid.show-diff .diff{display:inline}
-.grid.show-diff .view{display:none}
-.v3d-stage{position:relative;max-width:1120px;background:#808080;min-height:2px}
-.v3d-stage canvas{display:block}
-.v3d-stage span{position:absolute;top:4px;color:#fff;font-size:.8em;text-shadow:0 0 2px #000}
-.v3d-left{left:6px}.v3d-right{left:calc(50% + 6px)}.v3d-controls{margin:.5em 0}
-.v3d-stage::after{content:"";position:absolute;top:0;bottom:0;left:calc(50% - 1px);
-border-left:2px solid #fff}
-#script-errors{color:#900}
-"""
+_CSS = asset("report.css")
 
 #: In every page's head: an error of any script (or a promise nobody handled) is shown
 #: as text at the top of the page, never a silently blank part.
-ERRORS_SCRIPT = """<script>/* bench report: script errors shown in the page */
-(function () {
-  function show(text) {
-    var box = document.getElementById("script-errors");
-    if (!box) {
-      box = document.createElement("pre");
-      box.id = "script-errors";
-      document.body.insertBefore(box, document.body.firstChild);
-    }
-    box.textContent += "script error: " + text + "\n";
-  }
-  window.addEventListener("error", function (e) {
-    show(e.message + (e.filename ? " (" + e.filename + ":" + e.lineno + ")" : ""));
-  });
-  window.addEventListener("unhandledrejection", function (e) {
-    show(String(e.reason && e.reason.message || e.reason));
-  });
-})();
-</script>"""
+ERRORS_SCRIPT = script("errors.js")
 
 #: Summary-table columns left out when no record of the run defines them.
 _OPTIONAL_COLUMNS = ("exterior_share",)
@@ -149,16 +111,19 @@ def write_report(run_dir: Path, records: list[dict] | None = None,
     for note in refused:
         warnings.warn(note, RecordWarning, stacklevel=2)
     links = {m: f"model-{slugs[m]}.html" if split else f"#m-{slugs[m]}" for m in models}
-    summary = ["<h2>Summary</h2>", summary_html(_summary_table(table), records, links)]
+    summary = [leaderboard_html(records),
+               "<h2>All results</h2>", summary_html(_summary_table(table), records, links),
+               _claims_html(records)]
+    ends = ["<h2>Not applicable</h2>", _not_applicable(records),
+            "<h2>Failures</h2>", _failures(records)]
     if split:
         for m in models:
             write_atomic(run_dir / links[m], _model_page(run_dir, m, sections[m], records,
                                                          _viewer_scripts(viewers, slugs[m])))
-        body = [*summary, _model_list(models, links, table),
-                "<h2>Failures</h2>", _failures(records)]
+        body = [*summary, _model_list(models, links, table), *ends]
     else:
         body = [*summary, *(part for m in models for part in sections[m]),
-                "<h2>Timing</h2>", _timing(records), "<h2>Failures</h2>", _failures(records)]
+                "<h2>Timing</h2>", _timing(records), *ends]
     page = html_page(f"bench report: {_esc(run_dir.name)}",
                      [f"<h1>Simplification benchmark: {_esc(run_dir.name)}</h1>",
                       _warnings_html(notes + refused), _protocol_note(records), *body],
@@ -189,9 +154,9 @@ def _model_page(run_dir: Path, model: str, section: list[str], records: list[dic
     """The page of one model in a split report: its section and its timing table, then
     ``scripts``."""
     own = [r for r in records if r["job"]["model"] == model]
-    return html_page(f"bench report: {_esc(run_dir.name)} / {_esc(model)}",
+    return html_page(f"bench report: {_esc(run_dir.name)} / {_esc(model_text(model))}",
                      [f"<p><a href='index.html'>← summary of {_esc(run_dir.name)}</a></p>",
-                      f"<h1>Simplification benchmark: {_esc(run_dir.name)}, {_esc(model)}</h1>",
+                      f"<h1>Simplification benchmark: {_esc(run_dir.name)}, {model_cell(model)}</h1>",
                       _protocol_note(own), *section,
                       "<h2>Timing</h2>", _timing(own)],
                      scripts)
@@ -202,8 +167,9 @@ def _model_list(models: list[str], links: dict[str, str], table) -> str:
     items = []
     for m in models:
         statuses = Counter(table.status[table.model == m])
-        bad = ", ".join(f"{statuses[s]} {s}" for s in ("failed", "skipped") if statuses[s])
-        items.append(f"<li><a href='{links[m]}'>{_esc(m)}</a>: {sum(statuses.values())} jobs"
+        bad = ", ".join(f"{statuses[s]} {word}" for s, word in
+                        (("failed", "failed"), ("skipped", "not applicable")) if statuses[s])
+        items.append(f"<li><a href='{links[m]}'>{model_cell(m)}</a>: {sum(statuses.values())} jobs"
                      f"{f' ({bad})' if bad else ''}</li>")
     return ("<h2>Models</h2><p class='note'>One page per model, with its plots, image "
             f"sheets and timing.</p><ul>{''.join(items)}</ul>")
@@ -222,7 +188,11 @@ def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
     else:
         keys = {id(r): _image_folders(run_dir, r)[0] for r in own if evaluated(r)}
         view = viewers.section(own, keys, slug, len(_shadings(own)) > 1)
-    return [f"<h2 id='m-{slug}'>{_esc(model)}</h2>", _plots(ok, out, slug),
+    reused = {(r["job"]["label"], r["job"]["target_faces"], shading_label(r["job"]["protocol"]))
+              for r in own if evaluated(r) and reuse_note(r, own)}
+    return [f"<h2 id='m-{slug}'>{model_cell(model)}</h2>",
+            _quality_time(ok, model, out, slug, reused),
+            _plots(ok, out, slug),
             grid_links(own, images, slug), _exterior_table(ok), _silhouette_plot(own, out, slug),
             comparison_grids(own, images, slug), view,
             _sheets(run_dir, own, refused, out, images)]
@@ -231,7 +201,7 @@ def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
 def _slugs(models: list[str]) -> dict[str, str]:
     """A file-name part per model: lower-case letters, digits and ``-``, with a short
     hash of the name where two names would give the same part (or none)."""
-    base = {m: re.sub(r"[^a-z0-9]+", "-", str(m).lower()).strip("-")[:40] for m in models}
+    base = {m: re.sub(r"[^a-z0-9]+", "-", model_text(m).lower()).strip("-")[:40] for m in models}
     counts = Counter(base.values())
     return {m: b if b and counts[b] == 1 else
             f"{b}-{hashlib.sha1(str(m).encode()).hexdigest()[:8]}".lstrip("-")
@@ -306,58 +276,75 @@ def _fixed(value, digits: int = 3) -> str:
     return f"{value:.{digits}f}"
 
 
-def plot_text(text: str) -> str:
-    """Record text for a matplotlib label: ``$`` would start mathtext (and a malformed
-    formula aborts the whole figure), so it is escaped."""
-    return str(text).replace("$", r"\$")
-
-
-def pyplot():
-    """matplotlib's pyplot on the file-only backend, imported only for a report that
-    draws (a run of failures alone draws nothing and skips the import)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def _plots(table, out, slug: str) -> str:
+    """The d_RMS, FLIP and Hausdorff curves of one model's evaluated rows over faces."""
     import pandas as pd
 
     if table.empty:
         return ""
-    plt = pyplot()
-    # One curve per method, and per evaluation shading when a run has several.
-    series = table.method if table.shading.nunique() == 1 else \
-        table.method + " (" + table.shading + ")"
-    series = series.map(plot_text)
+    # One curve per method, and per evaluation shading when a run has several; a method
+    # keeps its style across the shadings (and across every figure of the report).
+    several = table.shading.nunique() > 1
+    styles = method_styles(table.method)
     imgs = []
     curves = (("d_rms", "d_RMS (luminance, 0-255) vs faces — cf. Figure 5"),
               ("flip", "FLIP (mean over views, 0-1) vs faces"),
               ("hausdorff_mean", "mean Hausdorff (fraction of diagonal) vs faces — cf. Figure 6"))
     for column, title in curves:
-        if column == "flip" and not (column in table and pd.to_numeric(
-                table[column], errors="coerce").gt(0).any()):
-            continue  # FLIP is optional: no record of the run has a value of it
-        fig, ax = plt.subplots(figsize=(6, 4))
-        for method, group in table.groupby(series):
-            # log axes: a value that is not finite and positive has no place on them
-            # (an infinite face count would abort the figure)
-            x, y = (pd.to_numeric(group[c], errors="coerce") for c in ("faces", column))
-            keep = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
-            if keep.any():
-                g = group[keep].sort_values("faces")
-                ax.plot(g.faces.astype(float), g[column].astype(float), marker="o", label=method)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("faces")
-        ax.set_title(title, fontsize=9)
-        ax.legend(fontsize=7)
-        ax.grid(True, which="both", alpha=.3)
+        values = pd.to_numeric(table[column], errors="coerce") if column in table else None
+        if values is None or not values.gt(0).any():
+            continue  # FLIP is optional, and a metric that is 0 everywhere has no log curve
+        series = {}
+        for (method, shading), group in table.groupby(["method", "shading"], sort=True):
+            label = f"{method} ({shading})" if several else method
+            series[label] = (pd.to_numeric(group.faces, errors="coerce"),
+                             pd.to_numeric(group[column], errors="coerce"), method)
+        fig = curves_figure(series, column, title, styles)
         imgs.append(_img(out.plot(fig, f"{slug}-{column}"), f"{column} plot", out))
     return "<div class='plots'>" + "".join(imgs) + "</div>"
+
+
+def _quality_time(table, model: str, out, slug: str, reused: set = frozenset()) -> str:
+    """One model's d_RMS and FLIP against method seconds (log), a row of panels per
+    shading, each panel with its Pareto front: the results no other beats on both quality
+    and time. ``table``: the model's evaluated rows (those off target are left out);
+    ``reused``: (method, budget, shading) of jobs whose seconds leave out a build they
+    reused, drawn hollow and kept off the front."""
+    import pandas as pd
+
+    ok = table[table.status == "ok"]
+    styles = method_styles(ok.method)
+    imgs = []
+    for shading, group in ok.groupby("shading", sort=True):
+        panels = []
+        seconds = pd.to_numeric(group.seconds, errors="coerce")
+        for column, name in (("d_rms", "d_RMS"), ("flip", "FLIP")):
+            values = pd.to_numeric(group[column], errors="coerce")
+            if not values.gt(0).any():
+                continue
+            points = {}
+            for method, secs, v, target in zip(group.method, seconds, values,
+                                               group.target_faces):
+                points.setdefault(method, []).append(
+                    (float(secs), float(v), (method, target, shading) in reused))
+            panels.append((f"{plot_text(model_text(model))}, {shading}: {name} vs time",
+                           name, points))
+        if panels:
+            fig = quality_time_figure(panels, styles)
+            src = out.plot(fig, f"{slug}-quality-time-{_file_part(shading)}")
+            imgs.append(_img(src, f"quality against time, {_esc(model_text(model))}", out))
+    if not imgs:
+        return ""
+    return ("<h3>Quality against time</h3><p class='note'>Each point is a result that "
+            "reached its target (one per budget); lower and further left is better. The "
+            "dashed line is the Pareto front: the results no other beats on both error and "
+            "seconds, its methods named in the legend. Seconds are the method's own, "
+            "compile time apart; a hollow point reused what another job built (its seconds "
+            "leave that build out) and is not on the front.</p><div class='plots qt'>" + "".join(imgs) + "</div>")
+
+
+def _file_part(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "-", str(text).lower()).strip("-") or "x"
 
 
 def _img(src: str, alt: str, out) -> str:
@@ -414,27 +401,22 @@ def _silhouette_plot(records: list[dict], out, slug: str) -> str:
     ok = [r for r in records if evaluated(r) and r.get("silhouette_histogram")]
     if not ok:
         return ""
-    plt = pyplot()
     smallest = min(r["job"]["target_faces"] for r in ok)
-    # Silhouettes do not depend on the evaluation shading: one bar set per method variant.
+    # Silhouettes do not depend on the evaluation shading: one curve per method variant.
     first = {}
     for r in ok:
         if r["job"]["target_faces"] == smallest:
             first.setdefault(r["job"]["label"], r)
-    chosen = list(first.values())
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    width = 0.8 / len(chosen)
-    for k, r in enumerate(chosen):
-        hist = np.asarray(r["silhouette_histogram"])
-        mean = _fixed(r["metrics"].get("silhouette_mean"), 2)
-        ax.bar(np.arange(len(hist)) + k * width, hist, width,
-               label=plot_text(f"{r['job']['label']} ⟨x⟩={mean}"))
-    ax.set_xlabel("number of views in which an edge is a silhouette")
-    ax.set_ylabel("share of edges")
-    ax.set_title(f"Silhouette histograms at {smallest} faces — cf. Figure 7", fontsize=9)
-    ax.legend(fontsize=7)
+    styles = method_styles(first)
+    hists = {label: r["silhouette_histogram"] for label, r in first.items()}
+    means = ", ".join(f"{label} {_fixed(r['metrics'].get('silhouette_mean'), 2)}"
+                      for label, r in first.items())
+    fig = silhouette_figure(hists, f"Silhouettes at {smallest} faces, cumulative — cf. "
+                                   "Figure 7", styles)
     src = out.plot(fig, f"{slug}-silhouettes")
-    return f"<div class='plots'>{_img(src, 'silhouette histograms', out)}</div>"
+    return (f"<div class='plots'>{_img(src, 'silhouette distributions', out)}</div>"
+            f"<p class='note'>Mean number of views in which an edge is a silhouette: "
+            f"{_esc(means)}.</p>")
 
 
 def _sheets(run_dir: Path, records: list[dict], refused: list[str], out, images: dict) -> str:
@@ -442,13 +424,16 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out, images:
     ``id(record)``: :func:`sheet_images`) and their artifacts; images that cannot be
     shown safely are left out with a reason in ``refused``."""
     several = len(_shadings(records)) > 1
-    parts = []
-    for r in records:
-        if not evaluated(r):
-            continue
+    parts, originals = [], set()
+    for r in sorted((r for r in records if evaluated(r)),
+                    key=lambda r: shading_label(r["job"]["protocol"])):
         job = r["job"]
         shading = shading_label(job["protocol"])
         under = f", evaluated {_esc(shading)}" if several else ""
+        if shading not in originals and any(c["original"] for c in images[id(r)]):
+            originals.add(shading)  # the original's views once per model and shading
+            parts.append(f"<h3>The original{under}</h3><div class='sheet'>"
+                         f"{''.join(_original_figures(images[id(r)]))}</div>")
         parts.append(f"<h3>{_esc(job['label'])} at {job['target_faces']} faces{under}: "
                      f"d_RMS {_fixed(r['metrics'].get('d_rms'))}</h3><div class='sheet'>"
                      f"{''.join(_sheet_figures(r, images[id(r)]))}</div>")
@@ -459,7 +444,12 @@ def _sheets(run_dir: Path, records: list[dict], refused: list[str], out, images:
             if shown:
                 parts.append(figure(shown, Path(name).stem.removeprefix("artifact-"),
                                      "artifact"))
-    return "".join(parts)
+    if not parts:
+        return ""
+    jobs = sum(evaluated(r) for r in records)
+    return (f"<details class='sheets'><summary>Image sheets of {jobs} results: the "
+            "original's views once, then each result's renders and |ΔY| difference images"
+            f"</summary>{''.join(parts)}</details>")
 
 
 def sheet_images(run_dir: Path, record: dict, refused: list[str], out) -> list[dict]:
@@ -487,14 +477,19 @@ def sheet_images(run_dir: Path, record: dict, refused: list[str], out) -> list[d
 
 
 def _sheet_figures(record: dict, views: list[dict]) -> list[str]:
-    """A job's sheet from its :func:`sheet_images`: the original's views, the result's
-    and their differences, one grid row each."""
+    """A job's sheet from its :func:`sheet_images`: the result's views and their
+    differences from the original's, one grid row each (the original's own views are
+    shown once per model and shading, :func:`_original_figures`)."""
     faces = f"{record['metrics'].get('faces')} faces"
-    rows = [[(f"original, view {c['view']}", c["original"]) for c in views],
-            [(faces, c["result"]) for c in views],
+    rows = [[(f"{faces}, view {c['view']}", c["result"]) for c in views],
             [(f"|ΔY|×4, d_RMS {_fixed(c['d_rms'], 1)}" if c["d_rms"] is not None
               else "|ΔY|×4", c["difference"]) for c in views]]
     return [figure(shown, caption) for row in rows for caption, shown in row if shown]
+
+
+def _original_figures(views: list[dict]) -> list[str]:
+    return [figure(c["original"], f"original, view {c['view']}") for c in views
+            if c["original"]]
 
 
 def _image_folders(run_dir: Path, record: dict) -> tuple[str, str | None]:
@@ -524,24 +519,85 @@ def _timing(records: list[dict]) -> str:
         s = r.get("stats") or {}
         label = r["job"]["label"] + (f" ({shading_label(r['job']['protocol'])} job)"
                                      if several else "")
-        rows.append(f"<tr><td>{_esc(r['job']['model'])}</td><td>{_esc(label)}</td>"
+        rows.append(f"<tr><td>{model_cell(r['job']['model'])}</td><td>{_esc(label)}</td>"
                     f"<td>{_cell(r['model'].get('faces'))}</td>"
                     f"<td>{_cell(r['metrics'].get('faces'))}</td>"
-                    f"<td>{_cell(s.get('wall_seconds'))}</td><td>{_cell(s.get('tri_per_s'))}</td>"
-                    f"<td>{_cell(s.get('peak_mb'))}</td></tr>")
+                    f"{_timing_cells(r, s, records)}</tr>")
     return ("<p class='note'>cf. Table 1 of Lindstrom & Turk 2000.</p><table class='sortable'>"
             f"<thead>{_TIMING_HEAD}</thead><tbody>{''.join(rows)}</tbody></table>")
+
+
+def _timing_cells(record: dict, stats: dict, records: list[dict]) -> str:
+    """Seconds, triangles removed per second and peak MB of a job; a job that reused
+    another's build says so, and its rate (of a time without the build) is left out."""
+    note = reuse_note(record, records)
+    if note:
+        return (f"<td title='{_esc(note)}'>{_cell(stats.get('wall_seconds'))} "
+                "<span class='reused'>reused build</span></td><td>—</td>"
+                f"<td>{number('peak_mb', stats.get('peak_mb'))}</td>")
+    return (f"<td>{_cell(stats.get('wall_seconds'))}</td><td>{_cell(stats.get('tri_per_s'))}"
+            f"</td><td>{number('peak_mb', stats.get('peak_mb'))}</td>")
 
 
 _TIMING_HEAD = ("<tr><th>model</th><th>method</th><th>faces before</th><th>faces after</th>"
                 "<th>seconds</th><th>triangles removed / s</th><th>peak MB</th></tr>")
 
 
+def _claims_html(records: list[dict]) -> str:
+    """The papers' claims that this run's records decide (those with rows), each with its
+    verdict and the class of its test, as ``bench reproduce`` decides them."""
+    from bench.records.claims import evaluate_claim
+    from bench.records.suites import SUITES
+
+    decided = []
+    for suite in SUITES.values():
+        for claim in suite.claims:
+            result = evaluate_claim(claim, records)
+            if result.rows:
+                decided.append(result)
+    if not decided:
+        return ""
+    rows = "".join(
+        f"<tr><td>{_esc(r.claim.name)}</td><td>{_esc(r.claim.source)}</td>"
+        f"<td>{_esc(r.claim.statement)}</td><td>{_esc(r.summary)}</td>"
+        f"<td class='{_VERDICT_CLASS.get(r.verdict, '')}'>{_esc(r.verdict)}</td>"
+        f"<td>{_esc(r.klass or '')}</td><td>{'' if r.p is None else f'{r.p:.3g}'}</td></tr>"
+        for r in decided)
+    return ("<h2>Claims this run decides</h2><p class='note'>The papers' claims whose "
+            "models, methods and budgets this run holds, decided from its records as "
+            "<code>bench reproduce</code> decides them (the class says whether the "
+            "difference is significant over the views; p after Holm's correction). The "
+            "suite a claim belongs to may hold more rows than this run.</p>"
+            "<div class='scroll'><table class='claims'><thead><tr><th>claim</th>"
+            "<th>source</th><th>statement</th><th>ours</th><th>verdict</th><th>class</th>"
+            f"<th>p</th></tr></thead><tbody>{rows}</tbody></table></div>")
+
+
+_VERDICT_CLASS = {"holds": "best", "holds, weaker": "", "mixed": "skipped",
+                  "does not hold": "failed", "no data": "skipped"}
+
+
+def _not_applicable(records: list[dict]) -> str:
+    """Jobs a method did not run because it does not apply (``skipped``: e.g. a texture
+    method on a model without texture coordinates), one line each: not failures."""
+    skipped = [r for r in records if r["status"] == "skipped"]
+    if not skipped:
+        return "<p>None.</p>"
+    items = "".join(f"<li>{_job_title(r)}: {_esc(_first_line(r.get('error')))}</li>"
+                    for r in skipped)
+    return f"<ul class='not-applicable'>{items}</ul>"
+
+
+def _first_line(text) -> str:
+    lines = [line for line in str(text or "").splitlines() if line.strip()]
+    return lines[0].strip() if lines else "(no reason given)"
+
+
 def _failures(records: list[dict]) -> str:
-    """Failed and skipped jobs with their errors, results off their target with the
-    reason the method gave, then metrics that raised in evaluated jobs (whose other
-    figures stand)."""
-    bad = [r for r in records if not evaluated(r)]
+    """Failed jobs with their errors, results off their target with the reason the
+    method gave, then metrics that raised in evaluated jobs (whose other figures
+    stand). Jobs that do not apply are under "Not applicable"."""
+    bad = [r for r in records if r["status"] == "failed"]
     off = [r for r in records if r["status"] == OFF_TARGET_STATUS]
     partial = [r for r in records if evaluated(r) and r.get("metric_errors")]
     if not bad and not partial and not off:
@@ -560,4 +616,4 @@ def _failures(records: list[dict]) -> str:
 
 def _job_title(record: dict) -> str:
     job = record["job"]
-    return f"{_esc(job['model'])} / {_esc(job['label'])} / {_esc(job['target_faces'])}"
+    return f"{model_cell(job['model'])} / {_esc(job['label'])} / {_esc(job['target_faces'])}"
