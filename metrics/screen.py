@@ -323,9 +323,10 @@ def switch_size(sizes, values, threshold: float) -> tuple[float, str | None]:
 def predicted_size(distance: float, radius: float) -> float | None:
     """The size S (pixels spanned by the bounding sphere of radius ``radius``) at which
     ``distance`` (model units) projects to one pixel: ``2 · radius / distance``; None
-    when the distance is not positive and finite (no deviation: never visible)."""
-    if distance is None or not (math.isfinite(distance) and distance > 0):
-        return None
+    when the distance is not finite or not above 1e-9 · radius (no deviation beyond
+    rounding: never visible)."""
+    if distance is None or not (math.isfinite(distance) and distance > radius * 1e-9):
+        return None  # no deviation above rounding: never visible
     return 2.0 * radius / distance
 
 
@@ -460,6 +461,27 @@ def engine_units(switch: dict, original: Mesh,
             "unity_relative_height": value * side / (2.0 * radius) / screen_height}
 
 
+def describe_bound(switch: dict) -> str:
+    """``">= 512"``, ``"< 32"`` or ``"181"``: a switch size as people read it."""
+    bound = switch.get("bound")
+    return f"{bound} {switch['value']:.0f}" if bound else f"{switch['value']:.0f}"
+
+
+def switch_entry(part: dict, original: Mesh, stats: dict | None = None) -> dict:
+    """The ``switch`` entry of a level in an LOD chain's sidecar: ``switch_px`` and
+    ``switch_px_rms`` with their bounds and in engine units, the predictions and the
+    curve."""
+    part = dict(part)
+    add_library_prediction(part, stats or {})
+    return {"switch_px": {**part["switch_px"], **engine_units(part["switch_px"], original)},
+            "switch_px_rms": {**part["switch_px_rms"],
+                              **engine_units(part["switch_px_rms"], original)},
+            "flip_threshold": part["flip_threshold"], "rms_threshold": part["rms_threshold"],
+            "predicted_px": part.get("predicted", {}),
+            "curve": {k: part[k] for k in ("sizes", "flip", "d_rms", "original_flip",
+                                           "original_d_rms")}}
+
+
 # -- registered metrics -----------------------------------------------------------------
 
 def _switch(name: str):
@@ -473,7 +495,8 @@ SWITCH_PX = Metric(
     "switch_px", "px", True,
     "largest size (pixels spanned by the bounding sphere) at which the LOD's mean FLIP "
     "against the converged original is at most 0.01 above the original's own; "
-    "results.csv's switch_px_bound says when it is a bound (needs --screen-sizes)", _switch("switch_px"), needs={"screen"})
+    "results.csv's switch_px_bound says when it is a bound (needs --screen-sizes)",
+    _switch("switch_px"), needs={"screen"})
 SWITCH_PX_RMS = Metric(
     "switch_px_rms", "px", True,
     "the same with d_RMS at most 2 luminance levels above the original's own (needs "

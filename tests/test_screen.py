@@ -189,3 +189,90 @@ def test_nested_lods_never_switch_later_with_fewer_faces():
     for more, fewer in zip(switches, switches[1:]):
         assert more * 2 ** 0.25 >= fewer, switches
     assert switches[0] > switches[-1], switches
+
+
+# -- LOD chains, tables, records -------------------------------------------------------------
+
+
+def test_halving_faces():
+    assert screen.halving_faces(56172) == [28086, 14043, 7022, 3511, 1755, 878, 439]
+    assert screen.halving_faces(1728) == [864, 432, 216, 108]
+    assert screen.halving_faces(1000, floor=200) == [500, 250]
+    with pytest.raises(ValueError, match="floor"):
+        screen.halving_faces(300, floor=200)
+
+
+@pytest.mark.filterwarnings("ignore::bench.errors.MeshWarning")  # kit's non-manifold edges
+def test_lod_suite_budgets_follow_the_models():
+    from bench.harness.suites import LOD_MODELS, SUITES
+    from bench.models import resolve_model
+
+    for name, faces in LOD_MODELS.items():
+        assert resolve_model(name).n_faces == faces, name
+    assert SUITES["lod"].faces["crate"] == (864, 432, 216, 108)
+
+
+def test_engine_units():
+    from bench.mesh import Mesh
+    from conftest import TET_FACES, TET_POSITIONS
+
+    # a cube's corners: bounding sphere radius sqrt(3), largest side 2
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    cube = Mesh(corners, np.array([[0, 1, 2], [1, 3, 2]], np.int32))
+    units = screen.engine_units({"value": 216.0, "bound": ">="}, cube, screen_height=1080)
+    assert units["unreal_screen_size"] == pytest.approx(0.2)
+    assert units["unity_relative_height"] == pytest.approx(0.2 * 2 / (2 * math.sqrt(3)))
+    assert units["bound"] == ">="
+    assert Mesh(TET_POSITIONS, TET_FACES).n_faces == 4
+
+
+def _row(faces, value, bound=None, hausdorff=None, library=None, method="m", target=None):
+    return {"model": "x", "method": method, "target": target or faces, "faces": faces,
+            "switch": {"value": value, "bound": bound},
+            "switch_rms": {"value": value, "bound": bound},
+            "predicted": {k: v for k, v in (("hausdorff", hausdorff), ("library", library))
+                          if v is not None},
+            "ablation": {"0.01": {"value": value, "bound": bound}}}
+
+
+def test_faces_needed_and_predictors():
+    from bench.harness.screen_tables import best_at, faces_needed, predictor_table
+
+    rows = [_row(4000, 512, ">=", hausdorff=400), _row(2000, 200, hausdorff=100),
+            _row(1000, 100, hausdorff=150), _row(500, 32, "<", hausdorff=40)]
+    assert faces_needed(rows, 128) == 2000   # 1000 faces switch at 100 < 128
+    assert faces_needed(rows, 64) == 1000
+    assert faces_needed(rows, 32) == 1000    # "< 32" is never enough
+    assert faces_needed(rows, 600) is None
+    table = predictor_table(rows)
+    hausdorff = [r for r in table if r[0] == "hausdorff"][0]
+    # decided: 4000 (400 <= 512: not early), 2000 (100 < 200), 1000 (150 > 100: early),
+    # 500 (40 >= "<32": early); ratios 2.0 and 0.667: their geometric median
+    assert hausdorff[3] == "4" and hausdorff[6] == "2/4"
+    assert float(hausdorff[4]) == pytest.approx(math.sqrt(2.0 * 100 / 150), rel=1e-2)
+    other = [_row(1500, 130, method="n")]
+    assert best_at(rows + other, 128)[1][1:3] == ["1500", "n"]
+
+
+def test_record_screen_part_is_checked():
+    from bench.harness.results import record_problem
+    from conftest import made_up_record
+
+    record = made_up_record()
+    record["screen"] = {"sizes": [64, 32], "flip": [0.1], "d_rms": [1.0, 2.0],
+                        "switch_px": {"value": 32, "bound": "<"},
+                        "switch_px_rms": {"value": 32, "bound": "<"}}
+    assert "flip" in record_problem(record)
+    record["screen"]["flip"] = [0.1, 0.2]
+    assert record_problem(record) is None
+    record["screen"]["switch_px"]["bound"] = "about"
+    assert "switch_px" in record_problem(record)
+
+
+def test_simplify_halving_and_switch_errors_are_one_line(tmp_path):
+    from test_cli import assert_one_line_error, bench
+
+    assert_one_line_error(bench("simplify", "crate", tmp_path / "a.glb", "--method", "qslim",
+                                "--halving", "5000"), "--halving")
+    assert_one_line_error(bench("simplify", "crate", tmp_path / "a.glb", "--method", "qslim",
+                                "--faces", "500", "--switch"), "--switch")
