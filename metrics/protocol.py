@@ -253,7 +253,7 @@ def _shared_inputs(needs: set, original: Mesh, simplified: Mesh, protocol: Proto
         t = time.perf_counter()
         curve = screen_curve(original, simplified, protocol,
                              protocol_images=ctx.get("simplified_images"),
-                             view_meshes=view_meshes)
+                             view_meshes=view_meshes, cache=cache_dir())
         ctx["screen"] = summarise(curve, original, ctx["hausdorff"]["symmetric_max"])
         seconds["screen"] = time.perf_counter() - t
     if "topology" in needs:

@@ -133,10 +133,10 @@ def parse_screen_sizes(text: str) -> tuple[int, ...]:
 
 # -- images -----------------------------------------------------------------------------
 
-def _cache_root(cache: Path | None) -> Path:
-    from metrics.protocol import cache_dir
-
-    return (cache or cache_dir()) / "originals"
+def _cache_file(cache: Path | None, name: str) -> Path | None:
+    """Where a cached image set of the original lies (``cache/originals/name``; the
+    protocol passes its :func:`metrics.protocol.cache_dir`), None without a cache."""
+    return None if cache is None else Path(cache) / "originals" / name
 
 
 def supersampled_images(original: Mesh, protocol, size: int,
@@ -154,8 +154,8 @@ def supersampled_images(original: Mesh, protocol, size: int,
     from metrics.render import get_renderer
 
     key = replace(protocol, resolution=size).image_key(original)
-    path = _cache_root(cache) / f"{key}-ss{factor}.npy"
-    if path.exists():
+    path = _cache_file(cache, f"{key}-ss{factor}.npy")
+    if path is not None and path.exists():
         try:
             return np.load(path)
         except (OSError, ValueError):
@@ -169,10 +169,11 @@ def supersampled_images(original: Mesh, protocol, size: int,
                                specular=protocol.specular)[0]
         block = view.reshape(size, factor, size, factor, 3).astype(np.float64)
         images[i] = np.rint(block.mean(axis=(1, 3))).astype(np.uint8)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp.npy")
-    np.save(tmp, images)
-    os.replace(tmp, path)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npy")
+        np.save(tmp, images)
+        os.replace(tmp, path)
     return images
 
 
@@ -180,13 +181,16 @@ def engine_images(mesh: Mesh, original: Mesh, protocol, size: int,
                   view_meshes: list[Mesh] | None = None) -> np.ndarray:
     """``mesh`` at ``size``² as an engine draws it: the protocol's cameras and 4× MSAA
     (a view-dependent result: view i shows ``view_meshes[i]``)."""
-    from dataclasses import replace
+    from metrics.render import get_renderer
 
-    from metrics.protocol import render_per_view, render_views
-
-    at = replace(protocol, resolution=size)
-    return (render_views(mesh, original, at) if view_meshes is None
-            else render_per_view(view_meshes, original, at))
+    renderer = get_renderer(size, size, 4)
+    cameras = protocol.cameras(original)
+    if view_meshes is None:
+        return renderer.render(mesh, cameras, shading=protocol.shading,
+                               specular=protocol.specular)
+    return np.concatenate([renderer.render(m, [c], shading=protocol.shading,
+                                           specular=protocol.specular)
+                           for m, c in zip(view_meshes, cameras, strict=True)])
 
 
 # -- the curve --------------------------------------------------------------------------
@@ -203,21 +207,22 @@ def original_floor(original: Mesh, protocol, size: int, reference: np.ndarray | 
 
     key = replace(protocol, resolution=size).image_key(original)
     views = _flip_views(protocol)
-    path = _cache_root(cache) / f"{key}-ss{SUPERSAMPLING}-floor-{views or 'subset'}.json"
+    path = _cache_file(cache, f"{key}-ss{SUPERSAMPLING}-floor-{views or 'subset'}.json")
     try:
         values = json.loads(path.read_text())
         return float(values["flip"]), float(values["d_rms"])
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        pass  # not cached (or no cache)
     if reference is None:
         reference = supersampled_images(original, protocol, size, cache=cache)
     drawn = engine_images(original, original, protocol, size)
     values = {"flip": flip_mean(reference, drawn, views=views)[0],
               "d_rms": d_rms(reference, drawn)[0]}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(values))
-    os.replace(tmp, path)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(values))
+        os.replace(tmp, path)
     return values["flip"], values["d_rms"]
 
 
@@ -229,7 +234,7 @@ def _flip_views(protocol):
 
 def screen_curve(original: Mesh, simplified: Mesh, protocol, sizes=None,
                  protocol_images: np.ndarray | None = None,
-                 view_meshes: list[Mesh] | None = None) -> dict:
+                 view_meshes: list[Mesh] | None = None, cache: Path | None = None) -> dict:
     """FLIP and d_RMS of ``simplified`` against the converged ``original`` at each size,
     and the same of the original itself drawn as the engine draws it (the floor).
 
@@ -240,6 +245,11 @@ def screen_curve(original: Mesh, simplified: Mesh, protocol, sizes=None,
     protocol_images : ndarray, optional
         ``simplified``'s protocol images; reused at the size equal to the protocol's
         resolution (they are the engine's image there) instead of rendering again.
+    view_meshes : list of Mesh, optional
+        A view-dependent result's per-view meshes (view i shows ``view_meshes[i]``).
+    cache : Path, optional
+        Folder of the original's cached images (the protocol passes its
+        ``cache_dir()``); None renders them afresh.
 
     Returns
     -------
@@ -260,8 +270,8 @@ def screen_curve(original: Mesh, simplified: Mesh, protocol, sizes=None,
     seconds = original_seconds = 0.0
     for size in sizes:
         t = time.perf_counter()
-        reference = supersampled_images(original, protocol, size)
-        floor = original_floor(original, protocol, size, reference)
+        reference = supersampled_images(original, protocol, size, cache=cache)
+        floor = original_floor(original, protocol, size, reference, cache=cache)
         floor_flip.append(floor[0])
         floor_rms.append(floor[1])
         original_seconds += time.perf_counter() - t
