@@ -276,3 +276,23 @@ def test_simplify_halving_and_switch_errors_are_one_line(tmp_path):
                                 "--halving", "5000"), "--halving")
     assert_one_line_error(bench("simplify", "crate", tmp_path / "a.glb", "--method", "qslim",
                                 "--faces", "500", "--switch"), "--switch")
+
+
+def test_evaluate_records_the_curve_only_when_asked(tmp_path, monkeypatch):
+    """metrics.protocol.evaluate with screen sizes: the curve, switch_px and its bound;
+    without: no screen part and no switch_px (records of other runs are unchanged)."""
+    from metrics.protocol import evaluate
+
+    monkeypatch.setenv("BENCH_CACHE", str(tmp_path))
+    original, lod = icosphere(4, "sphere"), icosphere(1)
+    small = Protocol(resolution=64, hausdorff_samples=20_000)
+    plain = evaluate(original, lod, small)
+    assert plain.screen is None and "switch_px" not in plain.metrics
+    ev = evaluate(original, lod, Protocol(resolution=64, hausdorff_samples=20_000,
+                                          screen_sizes=(64, 32)))
+    assert ev.screen["sizes"] == [64, 32]
+    assert ev.metrics["switch_px"] == ev.screen["switch_px"]["value"]
+    # an 80-face icosphere is visibly not a sphere at 64 and 32 px
+    assert ev.screen["switch_px"] == {"value": 32.0, "bound": "<"}
+    assert ev.metrics["d_rms"] == plain.metrics["d_rms"]  # the 64 px protocol images reused
+    assert 0 < ev.screen["predicted"]["hausdorff"] < 64
