@@ -296,3 +296,15 @@ def test_evaluate_records_the_curve_only_when_asked(tmp_path, monkeypatch):
     assert ev.screen["switch_px"] == {"value": 32.0, "bound": "<"}
     assert ev.metrics["d_rms"] == plain.metrics["d_rms"]  # the 64 px protocol images reused
     assert 0 < ev.screen["predicted"]["hausdorff"] < 64
+
+
+def test_faces_needed_chart_is_written(tmp_path):
+    from PIL import Image
+
+    from bench.harness.screen_tables import faces_needed_chart
+
+    rows = [_row(4000, 512, ">="), _row(1000, 100), _row(500, 32, "<"),
+            _row(2000, 300, method="n")]
+    path = faces_needed_chart(rows, "x", tmp_path / "x.png")
+    assert Image.open(path).size == (600, 400)
+    assert faces_needed_chart(rows, "no such model", tmp_path / "y.png") is None
