@@ -73,6 +73,9 @@ class Protocol:
     version: str = PROTOCOL_VERSION
     #: the named view set of :data:`metrics.views.VIEW_SETS` the images are taken from
     views: Literal["rhombicuboctahedron", "representative"] = "rhombicuboctahedron"
+    #: sizes of the screen-size evaluation (:mod:`metrics.screen`), largest first; empty:
+    #: none (and left out of :meth:`as_dict`, so records without it are unchanged)
+    screen_sizes: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         from metrics.views import VIEW_SETS
@@ -83,9 +86,20 @@ class Protocol:
                 or self.resolution < 1:
             raise ValueError(f"resolution must be a positive number of pixels, "
                              f"got {self.resolution!r}")
+        if self.screen_sizes:
+            from metrics.screen import check_screen_sizes
+
+            object.__setattr__(self, "screen_sizes", check_screen_sizes(self.screen_sizes))
+        else:
+            object.__setattr__(self, "screen_sizes", ())
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        settings = asdict(self)
+        if not self.screen_sizes:
+            del settings["screen_sizes"]
+        else:
+            settings["screen_sizes"] = list(self.screen_sizes)
+        return settings
 
     def cameras(self, original: Mesh) -> list:
         """The evaluation cameras of ``original`` under these settings."""
@@ -112,6 +126,8 @@ class Evaluation:
     images: np.ndarray | None = None
     #: metric name -> why it has no value (it raised, or is unavailable)
     errors: dict = field(default_factory=dict)
+    #: the screen-size evaluation (:func:`metrics.screen.summarise`), None when off
+    screen: dict | None = None
 
 
 def cache_dir() -> Path:
@@ -233,6 +249,15 @@ def _shared_inputs(needs: set, original: Mesh, simplified: Mesh, protocol: Proto
         eyes = np.array([c.eye for c in silhouette_cameras(original)])
         ctx["silhouette"] = silhouette.silhouette_histogram(simplified, eyes)
         seconds["silhouette"] = time.perf_counter() - t
+    if "screen" in needs and protocol.screen_sizes:
+        from metrics.screen import screen_curve, summarise
+
+        t = time.perf_counter()
+        curve = screen_curve(original, simplified, protocol,
+                             protocol_images=ctx.get("simplified_images"),
+                             view_meshes=view_meshes, cache=cache_dir())
+        ctx["screen"] = summarise(curve, original, ctx["hausdorff"]["symmetric_max"])
+        seconds["screen"] = time.perf_counter() - t
     if "topology" in needs:
         t = time.perf_counter()
         ctx["topology"] = topology.counts(original, simplified)
@@ -337,4 +362,5 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
             per_view[name] = list(views)
     return Evaluation(metrics=values, per_view=per_view,
                       silhouette_histogram=list(map(float, ctx["silhouette"].histogram)),
-                      seconds=seconds, images=ctx["simplified_images"], errors=errors)
+                      seconds=seconds, images=ctx["simplified_images"], errors=errors,
+                      screen=ctx.get("screen"))

@@ -77,7 +77,7 @@ def test_a_metric_declares_known_needs_and_always_gets_the_meshes():
     with pytest.raises(ValueError, match=r"needs \['pixels'\].*choose from"):
         Metric("z", "", None, "", lambda o, s, ctx: 0.0, needs={"images", "pixels"})
     assert set(NEEDS) == {"meshes", "images", "view_meshes", "hausdorff", "silhouette",
-                          "topology", "parts"}
+                          "topology", "parts", "screen"}
 
 
 def test_value_is_a_float_with_per_view_values():

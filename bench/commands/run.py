@@ -44,6 +44,10 @@ def add_parser(sub, name: str) -> None:
                    "given, it replaces them)")
     p.add_argument("--specular", action="store_true", help="add Blinn-Phong specular "
                    "(to every protocol of a suite)")
+    p.add_argument("--screen-sizes", metavar="S1,S2,...|default",
+                   help="also measure each result at these screen sizes (pixels spanned by "
+                   "the model's bounding sphere, 1-4096; 'default' = 512,256,128,64,32) and "
+                   "its switch size switch_px (docs/screen.md; on in the lod suite)")
     p.add_argument("--suite", help="a named experiment (sets models, methods, budgets and "
                    "evaluation protocols; the options above override them)")
     p.add_argument("--out", help="run directory (default: reports/run-YYYYmmdd-HHMMSS)")
@@ -181,6 +185,8 @@ def run(args) -> int:
     budgets = {m: _targets(mesh, m, faces, ratios, suite) for m, mesh in meshes.items()}
 
     protocols = evaluation_protocols(suite, args.shading, args.specular)
+    if getattr(args, "screen_sizes", None) is not None:
+        protocols = with_screen_sizes(protocols, args.screen_sizes)
     jobs = plan(models, variants, budgets, protocols)
     if args.resume:
         jobs = remaining(jobs, out)
@@ -260,6 +266,7 @@ def _shadings(protocols) -> str:
         p.shading + ("+specular" if p.specular else "")
         + (f" at {p.resolution}px" if p.resolution != Protocol().resolution else "")
         + (f" on the {p.views} view set" if p.views != Protocol().views else "")
+        + (f" at screen sizes {','.join(map(str, p.screen_sizes))}" if p.screen_sizes else "")
         for p in protocols) + " shading"
 
 
@@ -268,6 +275,20 @@ def _where(args, workers: int, threads: int) -> str:
             f"with {workers} workers" + (" (Dask LocalCluster)" if args.executor == "dask"
                                            else "")) + \
         f", {threads} thread{'s' if threads > 1 else ''} per job"
+
+
+def with_screen_sizes(protocols: list, text: str) -> list:
+    """The protocols with ``--screen-sizes`` set (:func:`metrics.screen.parse_screen_sizes`);
+    a bad size is a one-line InputError."""
+    from dataclasses import replace
+
+    from metrics.screen import parse_screen_sizes
+
+    try:
+        sizes = parse_screen_sizes(text)
+    except ValueError as exc:
+        raise InputError(f"--screen-sizes: {exc}") from None
+    return list(dict.fromkeys(replace(p, screen_sizes=sizes) for p in protocols))
 
 
 def _default_methods_line(methods, names: list[str], meshes: dict) -> str:

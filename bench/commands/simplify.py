@@ -56,6 +56,15 @@ def add_parser(sub, name: str) -> None:
     target.add_argument("--ratios", "--ratio", "-r", dest="ratios", metavar="R[,R2,...]",
                         help="target as a fraction in (0, 1] of the input's faces; several, "
                         "comma-separated and decreasing, write an LOD chain")
+    target.add_argument("--halving", nargs="?", const="auto", metavar="FLOOR",
+                        help="LOD chain of 50 %%, 25 %%, ... of the input's faces down to FLOOR "
+                        "faces (default: 100 or 1/256 of the input, the larger), as engines "
+                        "build chains")
+    p.add_argument("--switch", action="store_true",
+                   help="LOD chain: measure each level's switch size (the largest screen size "
+                   "at which it is indistinguishable from the input, docs/screen.md) and write "
+                   "it into OUT.lods.json, also as Unreal ScreenSize and Unity screen-relative "
+                   "height at 1080 pixels; implies --evaluate")
     p.add_argument("--chain", action="store_true",
                    help="LOD chain: simplify each level from the previous one (default: "
                    "each from the input)")
@@ -105,10 +114,16 @@ def run(args) -> int:
     params = parse_params(method_cls.Params, args.param)
     faces = parse_levels(args.faces, "--faces", int) if args.faces is not None else None
     ratios = parse_levels(args.ratios, "--ratios", float) if args.ratios is not None else None
+    if getattr(args, "halving", None) is not None:
+        faces = _halving(args)
+    if getattr(args, "switch", False):
+        args.evaluate = True
     if len(faces or ratios) > 1:
         return run_chain(args, method_cls, params, faces, ratios)
     if args.chain or args.evaluate:
-        raise InputError(f"--{'chain' if args.chain else 'evaluate'} applies to LOD chains: give "
+        flag = "chain" if args.chain else "switch" if getattr(args, "switch", False) else \
+            "evaluate"
+        raise InputError(f"--{flag} applies to LOD chains: give "
                          "two or more levels (--faces N1,N2,... or --ratios r1,r2,...)"
                          + ("" if args.chain else "; `bench run` evaluates a single result"))
     mesh = resolve_model(args.input)
@@ -146,6 +161,10 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
     targets = level_targets(mesh.n_faces, faces, ratios)
     method = method_cls(params)
     protocol = Protocol() if args.evaluate else None
+    if getattr(args, "switch", False):
+        from metrics.screen import DEFAULT_SCREEN_SIZES
+
+        protocol = Protocol(screen_sizes=DEFAULT_SCREEN_SIZES)
 
     def report(level) -> None:
         from tqdm import tqdm
@@ -155,6 +174,10 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
         line = (f"{mesh.name} {level.name}{source}: {level.source_faces} -> {r.mesh.n_faces} "
                 f"faces ({r.mesh.n_vertices} vertices) with {method_cls.name} in "
                 f"{r.stats.get('wall_seconds', 0.0):.3f} s")
+        if level.evaluation is not None and level.evaluation.screen is not None:
+            from metrics.screen import describe_bound
+
+            line += f"; switch {describe_bound(level.evaluation.screen['switch_px'])} px"
         if level.evaluation is not None:
             m = level.evaluation.metrics
             line += "; " + ", ".join(f"{key} {m[key]:.4g}" for key in
@@ -181,6 +204,19 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
             print(f"bench: note: {level.name} stopped short: {level.result.stop_reason}",
                   file=sys.stderr)
     return 0
+
+
+def _halving(args) -> list[int]:
+    """The face counts of ``--halving [FLOOR]`` for the input (metrics.screen)."""
+    from bench.commands.run import whole_number
+    from metrics.screen import halving_faces
+
+    floor = None if args.halving == "auto" else whole_number(args.halving, "--halving")
+    n_faces = resolve_model(args.input).n_faces
+    try:
+        return halving_faces(n_faces, floor)
+    except ValueError as exc:
+        raise InputError(f"--halving: {exc}") from None
 
 
 def _surfaced(result, mesh):

@@ -53,6 +53,8 @@ NEEDS = {
     "topology": "ctx['topology']: the dict of metrics.topology.counts",
     "parts": "ctx['parts']: the dict of metrics.parts.parts_lost (components and materials "
              "of the original with no face left)",
+    "screen": "ctx['screen']: the screen-size evaluation (metrics.screen.summarise: the "
+              "curve and switch sizes), present only when Protocol.screen_sizes is set",
 }
 
 

@@ -254,7 +254,7 @@ def record_problem(record) -> str | None:
 
 #: Protocol fields added after records were first written; a record without one was
 #: made under the field's default.
-_LATER_PROTOCOL_FIELDS = frozenset({"views"})
+_LATER_PROTOCOL_FIELDS = frozenset({"views", "screen_sizes"})
 
 
 def _protocol_problem(protocol) -> str | None:
@@ -278,6 +278,8 @@ def _protocol_problem(protocol) -> str | None:
             good = value in typing.get_args(kind)
         elif kind is bool:
             good = isinstance(value, bool)
+        elif typing.get_origin(kind) is tuple:  # screen_sizes: positive whole numbers
+            good = isinstance(value, list) and all(_is_int(v) and v > 0 for v in value)
         elif kind is int:
             good = _is_int(value) and value > 0
         else:
@@ -351,7 +353,14 @@ _PARTS = {
     "metric_errors": _strings,
     "stop_reason": lambda v: None if isinstance(v, str) else f"must be a string, got {_kind(v)}",
     "mesh_file_error": lambda v: None if isinstance(v, str) else f"must be a string, got {_kind(v)}",
+    "screen": lambda v: _screen_problem(v),
 }
+
+
+def _screen_problem(part) -> str | None:
+    from metrics.screen import screen_part_problem
+
+    return screen_part_problem(part)
 #: What the report shows of every ok job.
 _NEEDED_IF_OK = ("model", "metrics")
 
@@ -396,7 +405,11 @@ def records_table(records: list[dict]):
     (one row per record)."""
     import pandas as pd
 
+    from metrics import screen
+
     extra = metric_columns(records)
+    if any(r.get("screen") for r in records):  # the screen-size evaluation's bounds
+        extra += list(screen.CSV_COLUMNS)
     rows = []
     for r in records:
         m, job, stats = r.get("metrics") or {}, r["job"], r.get("stats") or {}
@@ -411,6 +424,7 @@ def records_table(records: list[dict]):
             "library_error": stats.get("library_error"), "seconds": stats.get("wall_seconds"),
             "tri_per_s": stats.get("tri_per_s"), "peak_mb": stats.get("peak_mb"), "status": r["status"],
             **{name: m.get(name) for name in extra},
+            **(screen.csv_columns(r.get("screen")) if r.get("screen") else {}),
         })
     return pd.DataFrame(rows, columns=CSV_COLUMNS + extra)
 

@@ -160,7 +160,7 @@ class Suite:
 
 
 #: Protocol fields a suite may set besides the shading (:class:`Suite` ``protocols``).
-PROTOCOL_OPTIONS = ("resolution", "views")
+PROTOCOL_OPTIONS = ("resolution", "views", "screen_sizes")
 
 
 def _protocol_entry(entry) -> tuple[str, bool, dict]:
@@ -231,7 +231,32 @@ def _wild_claims() -> tuple[Claim, ...]:
     return tuple(claims)
 
 
+#: The faces of the models of the ``lod`` suite (tests/test_screen.py checks them), so
+#: its halving budgets need no model loaded.
+LOD_MODELS = {"bunny": 56172, "torus": 65536, "crate": 1728, "bunny-textured": 9999,
+              "two-materials": 3968, "uv-sphere": 23600, "kit": 4688, "vehicle": 3616}
+#: The screen-size protocol of the ``lod`` suites (metrics.screen).
+LOD_PROTOCOL = (("flat", False, {"screen_sizes": (512, 256, 128, 64, 32)}),)
+
+
+def _halving(faces: int) -> tuple[int, ...]:
+    from metrics.screen import halving_faces
+
+    return tuple(halving_faces(faces))
+
+
 SUITES = {
+    "lod": Suite(
+        "lod", "switch sizes of halving chains (50 %, 25 %, ... to 100 faces or 1/256): "
+        "every available method on bunny, torus, crate, bunny-textured, two-materials and "
+        "the wild analogues uv-sphere, kit, vehicle, evaluated at 512-32 px (docs/screen.md)",
+        models=tuple(LOD_MODELS), faces={m: _halving(n) for m, n in LOD_MODELS.items()},
+        protocols=LOD_PROTOCOL),
+    "lod-ci": Suite(
+        "lod-ci", "the part of the lod suite CI runs: the crate's halving chain with qslim "
+        "and meshopt at 512-32 px",
+        models=("crate",), variants=(("qslim", {}), ("meshopt", {})),
+        faces={"crate": _halving(LOD_MODELS["crate"])}, protocols=LOD_PROTOCOL),
     "ci": Suite(
         "ci", "small enough for CI: bunny and torus at 2% and 1% of their faces, every "
         "available method", models=("bunny", "torus"), ratios=(0.02, 0.01),

@@ -295,6 +295,11 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
                   status=result_status(simplified.mesh.n_faces, job.target_faces))
     if ev.errors:  # metrics that raised: the job is ok, those values are missing
         record["metric_errors"] = ev.errors
+    if ev.screen is not None:  # the screen-size curve, with the method's own prediction
+        from metrics.screen import add_library_prediction
+
+        record["screen"] = dict(ev.screen)
+        add_library_prediction(record["screen"], stats)
     _sheet_files(job, mesh, reference, ev.images, result)
     clock.lap("sheets")
     _mesh_files(job, mesh, simplified.mesh, result)

@@ -211,6 +211,10 @@ def sidecar(mesh: Mesh, method: Method, levels: list[Level], chain: bool,
                  "evaluation_seconds": level.evaluation_seconds}
         if level.evaluation is not None and level.evaluation.errors:
             entry["metric_errors"] = level.evaluation.errors
+        if level.evaluation is not None and level.evaluation.screen is not None:
+            from metrics.screen import switch_entry  # bench simplify --switch
+
+            entry["switch"] = switch_entry(level.evaluation.screen, mesh, stats)
         entries.append(entry)
     names = []
     for written in files.values():
