@@ -240,3 +240,35 @@ def test_a_point_that_reused_a_build_is_hollow_and_off_the_front():
     hollow = [c for c in fig.axes[0].collections if len(c.get_offsets()) == 1
               and tuple(c.get_offsets()[0]) == (0.004, 11.0)]
     assert len(hollow) == 1 and hollow[0].get_facecolors().size == 0
+
+
+def test_the_switch_size_column_shows_bounds_as_bounds():
+    records = [views_record("a", BASE), views_record("b", shifted(1.0)),
+               views_record("c", shifted(2.0))]
+    records[0]["screen"] = {"switch_px": {"value": 512.0, "bound": ">="}}
+    records[1]["screen"] = {"switch_px": {"value": 90.6, "bound": None}}
+    records[2]["screen"] = {"switch_px": {"value": 32.0, "bound": "<"}}
+    page = leaderboard_html(records)
+    assert "switch px" in page
+    cells = [re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<td[^>]*>.*?</td>", page)]
+    assert "≥512" in cells and "91" in cells and "&lt;32" in cells
+    assert "switch px" not in leaderboard_html([views_record("a", BASE),
+                                                views_record("b", shifted(1.0))])
+
+
+def test_the_screen_section_lists_each_level_and_the_faces_needed():
+    from bench.report.images import Inline
+    from bench.report.page import _screen_sizes
+
+    records = []
+    for faces, value, bound in ((400, 512.0, ">="), (200, 150.0, None), (100, 40.0, None)):
+        r = views_record("a", BASE, target=faces, faces=faces)
+        r["screen"] = {"switch_px": {"value": value, "bound": bound},
+                       "switch_px_rms": {"value": value, "bound": bound}}
+        records.append(r)
+    html = _screen_sizes(records, Inline(), "m")
+    rows = [re.sub(r"<[^>]+>", "|", row) for row in re.findall(r"<tr>.*?</tr>", html)]
+    # the 100-face level switches at 40 px: at 128 and at 64 px 200 faces are needed
+    assert any(row.endswith("|400:&gt;=512 200:150 100:40||200||200||") for row in rows), rows
+    assert "<img" in html
+    assert _screen_sizes([views_record("a", BASE)], Inline(), "m") == ""

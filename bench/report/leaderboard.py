@@ -64,7 +64,20 @@ COLUMNS = (Column("d_rms", "d_RMS", "0-255", False, _metric("d_rms")),
 #: Optional columns after :data:`COLUMNS` (e.g. the largest screen size at which a result
 #: is indistinguishable, once the screen-size evaluation records it); shown when some
 #: record has a value.
-EXTRA_COLUMNS: list[Column] = []
+def _switch_px(record: dict):
+    """A result's switch size (``--screen-sizes``, the lod suites): a number, or a bound
+    as text (``≥512``, ``<32``); None without a screen-size evaluation."""
+    switch = (record.get("screen") or {}).get("switch_px")
+    if not isinstance(switch, dict) or not _finite(switch.get("value")):
+        return None
+    bound = {">=": "≥", "<": "<"}.get(switch.get("bound"))
+    return f"{bound}{switch['value']:.0f}" if bound else round(switch["value"])
+
+
+EXTRA_COLUMNS: list[Column] = [
+    # the screen-size evaluation's answer, where a run has it
+    Column("switch_px", "switch px", "px", True, _switch_px),
+]
 
 
 def _finite(value) -> bool:

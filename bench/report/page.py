@@ -194,8 +194,32 @@ def _model_section(run_dir: Path, model: str, records: list[dict], table, out,
             _quality_time(ok, model, out, slug, reused),
             _plots(ok, out, slug),
             grid_links(own, images, slug), _exterior_table(ok), _silhouette_plot(own, out, slug),
+            _screen_sizes(own, out, slug),
             comparison_grids(own, images, slug), view,
             _sheets(run_dir, own, refused, out, images)]
+
+
+def _screen_sizes(own: list[dict], out, slug: str) -> str:
+    """With screen sizes evaluated (``--screen-sizes``, the lod suite): the chart of the
+    faces each method needs per screen size and the table of its levels' switch sizes."""
+    from bench.report.screen_tables import faces_needed_figure, switch_rows, switch_table
+
+    rows = switch_rows(own)
+    if not rows:
+        return ""
+    model = rows[0]["model"]
+    fig = faces_needed_figure(rows, model)
+    chart = "" if fig is None else _img(out.plot(fig, f"{slug}-screen"), "faces needed", out)
+    head, *body = switch_table(rows)
+    table = ("<table class='sortable'><thead><tr>" + "".join(f"<th>{_esc(h)}</th>" for h in head)
+             + "</tr></thead><tbody>" + "".join(
+                 "<tr>" + "".join(f"<td>{_esc(c)}</td>" for c in row) + "</tr>" for row in body)
+             + "</tbody></table>")
+    return ("<h3>Screen sizes</h3><p class='note'>The size in pixels that the model's "
+            "bounding sphere spans on screen, from which each result is indistinguishable "
+            "from the original (switch_px: FLIP within the protocol's threshold of the "
+            "original's own; docs/screen.md). ≥512 and &lt;32 are bounds: the sizes "
+            f"measured.</p><div class='plots'>{chart}</div>{table}")
 
 
 def _slugs(models: list[str]) -> dict[str, str]:
@@ -522,7 +546,7 @@ def _timing(records: list[dict]) -> str:
         rows.append(f"<tr><td>{model_cell(r['job']['model'])}</td><td>{_esc(label)}</td>"
                     f"<td>{_cell(r['model'].get('faces'))}</td>"
                     f"<td>{_cell(r['metrics'].get('faces'))}</td>"
-                    f"{_timing_cells(r, s, records)}</tr>")
+                    f"{_timing_cells(r, s, records)}{_outside_cell(r)}</tr>")
     return ("<p class='note'>cf. Table 1 of Lindstrom & Turk 2000.</p><table class='sortable'>"
             f"<thead>{_TIMING_HEAD}</thead><tbody>{''.join(rows)}</tbody></table>")
 
@@ -539,8 +563,22 @@ def _timing_cells(record: dict, stats: dict, records: list[dict]) -> str:
             f"</td><td>{number('peak_mb', stats.get('peak_mb'))}</td>")
 
 
+def _outside_cell(record: dict) -> str:
+    """The job's time outside its method (load, warm-up, the evaluation, the report's
+    files), each stage on hover; empty for a record without ``timings``."""
+    t = record.get("timings")
+    if not isinstance(t, dict) or not isinstance(t.get("total"), (int, float)):
+        return "<td></td>"
+    stages = ", ".join(f"{k} {v:.2f} s" for k, v in t.items()
+                       if k not in ("total", "method") and isinstance(v, (int, float)))
+    outside = t["total"] - (t.get("method") or 0.0)
+    return f"<td title='{_esc(stages)}'>{outside:.2f}</td>"
+
+
 _TIMING_HEAD = ("<tr><th>model</th><th>method</th><th>faces before</th><th>faces after</th>"
-                "<th>seconds</th><th>triangles removed / s</th><th>peak MB</th></tr>")
+                "<th>seconds</th><th>triangles removed / s</th><th>peak MB</th>"
+                "<th title='load, warm-up, evaluation and the report files of the job'>"
+                "seconds outside the method</th></tr>")
 
 
 def _claims_html(records: list[dict]) -> str:

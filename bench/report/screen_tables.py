@@ -155,35 +155,51 @@ def ablation_table(rows: list[dict], size: float = 128) -> list[list[str]]:
     return table
 
 
-def faces_needed_chart(rows: list[dict], model: str, path: Path,
-                       sizes=(32, 45, 64, 91, 128, 181, 256, 362, 512)) -> Path | None:
-    """A PNG chart "faces needed vs screen size" of ``model``: for each method the
-    fewest of its budgets indistinguishable at each size (log-log); None without data."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def faces_needed_figure(rows: list[dict], model: str,
+                        sizes=(32, 45, 64, 91, 128, 181, 256, 362, 512)):
+    """The figure "faces needed vs screen size" of ``model``: for each method (in its
+    report style) the fewest of its budgets indistinguishable at each size, log-log;
+    None without data."""
+    from bench.report.plots import legend_outside, plain_log_axis, plot_text, pyplot
+    from bench.report.styles import method_styles
 
     groups = {m: g for (mo, m), g in _groups(rows).items() if mo == model}
     if not groups:
         return None
-    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
+    plt = pyplot()
+    styles = method_styles(groups)
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
     for method, group in groups.items():
         points = [(s, faces_needed(group, s)) for s in sizes]
         points = [(s, f) for s, f in points if f is not None]
         if points:
-            ax.plot(*zip(*points), marker="o", label=method)
+            ax.plot(*zip(*points), label=plot_text(method), markersize=5,
+                    **styles[method].plot_kwargs())
     ax.set_xscale("log", base=2)
     ax.set_yscale("log")
+    plain_log_axis(ax.xaxis)
+    plain_log_axis(ax.yaxis)
     ax.set_xlabel("screen size (pixels spanned by the bounding sphere)")
-    ax.set_ylabel("faces needed (fewest indistinguishable budget)")
-    ax.set_title(f"{model}: faces needed vs screen size")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
+    ax.set_ylabel("faces needed")
+    ax.set_title(f"{plot_text(model)}: the fewest faces indistinguishable at each size",
+                 fontsize=10)
+    ax.grid(True, which="major", alpha=.3)
+    legend_outside(ax, fig)
+    return fig
+
+
+def faces_needed_chart(rows: list[dict], model: str, path: Path,
+                       sizes=(32, 45, 64, 91, 128, 181, 256, 362, 512)) -> Path | None:
+    """:func:`faces_needed_figure` written to ``path`` as PNG; None without data."""
+    fig = faces_needed_figure(rows, model, sizes)
+    if fig is None:
+        return None
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    from bench.report.plots import pyplot
+
+    pyplot().close(fig)
     return path
 
 
