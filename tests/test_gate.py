@@ -52,6 +52,19 @@ def test_identical_values_are_same_at_zero_tolerance():
     assert _marks({"d_rms": 3.0}, {"d_rms": 3.0}, 0.0) == {"d_rms": "same"}
 
 
+def test_another_model_under_the_same_name_is_not_comparable():
+    """A model the engine makes (bunny-textured-815) changes with the engine: its
+    results, even a baseline's, are of another input, neither worse nor better."""
+    old, new = _record(d_rms=3.0), _record(d_rms=4.0)
+    new["model"]["hash"] = "1" * 40
+    rows = compare(make_baseline([old]), make_baseline([new]))
+    assert [(r.metric, r.baseline, r.current, r.mark) for r in rows] == [
+        ("model", "0" * 12, "1" * 12, "not comparable")]
+    baseline = make_baseline([old])
+    del baseline["entries"][next(iter(baseline["entries"]))]["model_hash"]  # an older one
+    assert {r.mark for r in compare(baseline, make_baseline([new]))} == {"worse"}
+
+
 @pytest.mark.parametrize("before, after", [
     ({"d_rms": math.nan}, {"d_rms": 5.0}),    # NaN in the baseline is never "better"
     ({"d_rms": 5.0}, {"d_rms": math.nan}),    # a metric turning NaN is not "not comparable"

@@ -6,7 +6,8 @@ direction by more than ``tolerance × |baseline|`` (plus 1e-12, so 0 → 1 crack
 
 Marks: ``worse``, ``better``, ``same``, ``newly failing`` (baseline ok, now failed),
 ``fixed`` (baseline failed, now ok), ``not comparable`` (method or protocol version
-changed, so numbers cannot be compared), ``not finite`` (NaN or infinite on either side:
+changed, or the model's content under the same name, e.g. a model the engine makes: the
+numbers cannot be compared), ``not finite`` (NaN or infinite on either side:
 no comparison with it can be trusted, and NaN compares false both ways, so it would pass
 for ``same``), ``missing`` (in the baseline, not in the run), ``missing metric`` (a
 gated metric the baseline has for a job that the run's record of it lacks: the same
@@ -162,6 +163,9 @@ def make_baseline(records: list[dict]) -> dict:
             "protocol_version": r["job"]["protocol"]["version"],
             "metrics": {k: metrics[k] for k in directions if _number(metrics.get(k))},
         }
+        model_hash = (r.get("model") or {}).get("hash")
+        if isinstance(model_hash, str):  # the input itself, e.g. a model made by the engine
+            entries[key]["model_hash"] = model_hash
         errors = {k: v for k, v in (r.get("metric_errors") or {}).items() if k in directions}
         if errors:  # metrics that raised in an ok job (metrics.protocol.evaluate)
             entries[key]["metric_errors"] = errors
@@ -254,6 +258,8 @@ def baseline_problem(data) -> str | None:
             if not isinstance(entry.get(name), (str, int, type(None))) or \
                     isinstance(entry.get(name), bool):
                 return f"{where}: '{name}' is {_show(entry.get(name))}"
+        if not isinstance(entry.get("model_hash", ""), str):
+            return f"{where}: 'model_hash' is {_show(entry.get('model_hash'))}"
         metrics = entry.get("metrics")
         if not isinstance(metrics, dict):
             return f"{where}: no 'metrics' object"
@@ -312,6 +318,11 @@ def compare(baseline: dict, current: dict, tolerance: float = 0.02) -> list[Row]
                                                                  new["protocol_version"]):
             rows.append(Row(key, "version", f"m{old['method_version']}/p{old['protocol_version']}",
                             f"m{new['method_version']}/p{new['protocol_version']}",
+                            "not comparable"))
+            continue
+        if old.get("model_hash") and new.get("model_hash") and \
+                old["model_hash"] != new["model_hash"]:  # another input under the same name
+            rows.append(Row(key, "model", old["model_hash"][:12], new["model_hash"][:12],
                             "not comparable"))
             continue
         if old["status"] == "ok" and new["status"] != "ok":
