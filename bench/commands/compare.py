@@ -71,10 +71,10 @@ def compare_methods(records: list[dict], a: str, b: str, metric: str = "d_rms"
                     ) -> tuple[list[dict], dict]:
     """The rows of the comparison of ``a`` with ``b`` on ``metric`` (the module's
     docstring) and the sign test over them, as plain data."""
+    from bench.core.method import canonical_label
     from bench.records.check import metric_info
     from bench.records.results import OK, shading_label
     from bench.records.stats import ALPHA, consistent_views, holm, paired, sign_test
-    from bench.core.method import canonical_label
 
     unit, higher = metric_info().get(metric, ("", None))
     if higher is None:

@@ -32,9 +32,9 @@ def add_parser(sub, name: str) -> None:
 
 
 def run(args) -> int:
+    from bench.core.registry import suggest
     from bench.records.check import check_tolerance, load_baseline, metric_info
     from bench.records.history import load_history
-    from bench.core.registry import suggest
     from bench.report.history import write_history
 
     tolerance = check_tolerance(args.tolerance)

@@ -23,6 +23,7 @@ written textures are named after it). Nothing is written then.
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import time
 from pathlib import Path
@@ -166,25 +167,7 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
 
         protocol = Protocol(screen_sizes=DEFAULT_SCREEN_SIZES)
 
-    def report(level) -> None:
-        from tqdm import tqdm
-
-        r = level.result
-        source = f" (from {level.source})" if args.chain else ""
-        line = (f"{mesh.name} {level.name}{source}: {level.source_faces} -> {r.mesh.n_faces} "
-                f"faces ({r.mesh.n_vertices} vertices) with {method_cls.name} in "
-                f"{r.stats.get('wall_seconds', 0.0):.3f} s")
-        if level.evaluation is not None and level.evaluation.screen is not None:
-            from metrics.screen import describe_bound
-
-            line += f"; switch {describe_bound(level.evaluation.screen['switch_px'])} px"
-        if level.evaluation is not None:
-            m = level.evaluation.metrics
-            line += "; " + ", ".join(f"{key} {m[key]:.4g}" for key in
-                                     ("d_rms", "flip", "hausdorff_mean", "hausdorff_max")
-                                     if m.get(key) is not None)
-        tqdm.write(line, file=sys.stdout)
-
+    report = functools.partial(_report_level, mesh.name, method_cls.name, args.chain)
     start = time.perf_counter()
     levels = build_levels(method, mesh, targets, chain=args.chain, protocol=protocol,
                           progress=True, on_level=report)
@@ -204,6 +187,27 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
             print(f"bench: note: {level.name} stopped short: {level.result.stop_reason}",
                   file=sys.stderr)
     return 0
+
+
+def _report_level(model: str, method: str, chain: bool, level) -> None:
+    """One line per LOD level as it is made: faces, time and, evaluated, its figures."""
+    from tqdm import tqdm
+
+    r = level.result
+    source = f" (from {level.source})" if chain else ""
+    line = (f"{model} {level.name}{source}: {level.source_faces} -> {r.mesh.n_faces} "
+            f"faces ({r.mesh.n_vertices} vertices) with {method} in "
+            f"{r.stats.get('wall_seconds', 0.0):.3f} s")
+    if level.evaluation is not None and level.evaluation.screen is not None:
+        from metrics.screen import describe_bound
+
+        line += f"; switch {describe_bound(level.evaluation.screen['switch_px'])} px"
+    if level.evaluation is not None:
+        m = level.evaluation.metrics
+        line += "; " + ", ".join(f"{key} {m[key]:.4g}" for key in
+                                 ("d_rms", "flip", "hausdorff_mean", "hausdorff_max")
+                                 if m.get(key) is not None)
+    tqdm.write(line, file=sys.stdout)
 
 
 def _halving(args) -> list[int]:

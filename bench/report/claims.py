@@ -16,8 +16,8 @@ import math
 from pathlib import Path
 from urllib.parse import quote
 
-from bench.records.claims import ClaimResult
 from bench.io.atomic import write_atomic
+from bench.records.claims import ClaimResult
 from bench.report.images import RunFiles, run_png
 from bench.report.page import figure, html_page, pyplot
 from bench.report.table import esc

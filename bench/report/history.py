@@ -11,9 +11,9 @@ from collections import Counter
 from pathlib import Path
 
 from bench.core.errors import RecordWarning
+from bench.io.atomic import write_atomic
 from bench.records.check import metric_info
 from bench.records.history import Point, history_table
-from bench.io.atomic import write_atomic
 from bench.report.images import RunFiles, Shown
 from bench.report.page import figure, html_page
 from bench.report.plots import legend_outside, plot_text, pyplot

@@ -36,6 +36,7 @@ from collections import Counter
 from pathlib import Path
 
 from bench.core.errors import RecordWarning
+from bench.io.atomic import write_atomic
 from bench.records.results import (
     EVALUATED,
     OFF_TARGET_STATUS,
@@ -45,7 +46,6 @@ from bench.records.results import (
     records_table,
     shading_label,
 )
-from bench.io.atomic import write_atomic
 from bench.report import asset, script
 from bench.report.cells import model_cell, model_text, number
 from bench.report.grid import GRID_SCRIPT, comparison_grids, grid_links

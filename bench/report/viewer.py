@@ -215,8 +215,8 @@ class Viewers:
         """The 3D view of one model's ``records`` (its ok jobs, each with its original;
         ``keys`` maps ``id(record)`` to the job key its files are named after), or a note
         saying why there is none. ``slug`` is the model's part of file names and ids."""
-        from bench.run.jobs import mesh_paths
         from bench.records.results import shading_label
+        from bench.run.jobs import mesh_paths
 
         ok = [r for r in records if evaluated(r) and id(r) in keys]
         if not ok:

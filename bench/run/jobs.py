@@ -276,11 +276,7 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     simplified = run_method(method_cls(params), mesh, job.target_faces, ctx)
     phase("evaluation")
     clock.lap("method")
-    stats = dict(simplified.stats)
-    stats["compile_seconds"] = compile_seconds
-    stats["peak_mb"] = peak.megabytes()
-    removed = mesh.n_faces - simplified.mesh.n_faces
-    stats["tri_per_s"] = removed / stats["wall_seconds"] if stats["wall_seconds"] > 0 else None
+    stats = _method_stats(simplified, mesh.n_faces, compile_seconds, peak)
     record.update(stats=stats, stop_reason=simplified.stop_reason,
                   artifacts=_artifact_files(job, simplified.artifacts, result.files))
 
@@ -289,10 +285,30 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     ev, view_stats = evaluate_result(mesh, simplified, job.protocol, reference)
     clock.lap("evaluation")
     stats.update(view_stats)
+    _record_evaluation(record, ev, stats, simplified.mesh.n_faces, job.target_faces)
+    _sheet_files(job, mesh, reference, ev.images, result)
+    clock.lap("sheets")
+    _mesh_files(job, mesh, simplified.mesh, result)
+    clock.lap("mesh_files")
+    timings["total"] = clock.total()
+
+
+def _method_stats(simplified, faces_before: int, compile_seconds: float, peak) -> dict:
+    """The method's own statistics and the job's: its warm-up, peak memory and rate."""
+    stats = dict(simplified.stats)
+    stats["compile_seconds"] = compile_seconds
+    stats["peak_mb"] = peak.megabytes()
+    removed = faces_before - simplified.mesh.n_faces
+    stats["tri_per_s"] = removed / stats["wall_seconds"] if stats["wall_seconds"] > 0 else None
+    return stats
+
+
+def _record_evaluation(record: dict, ev, stats: dict, faces: int, target: int) -> None:
+    """The evaluation's figures into the record, and the job's status."""
     record.update(metrics=ev.metrics, per_view=ev.per_view, seconds=ev.seconds,
                   intervals=compute_intervals(ev.metrics, ev.per_view),
                   silhouette_histogram=ev.silhouette_histogram,
-                  status=result_status(simplified.mesh.n_faces, job.target_faces))
+                  status=result_status(faces, target))
     if ev.errors:  # metrics that raised: the job is ok, those values are missing
         record["metric_errors"] = ev.errors
     if ev.screen is not None:  # the screen-size curve, with the method's own prediction
@@ -300,11 +316,6 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
 
         record["screen"] = dict(ev.screen)
         add_library_prediction(record["screen"], stats)
-    _sheet_files(job, mesh, reference, ev.images, result)
-    clock.lap("sheets")
-    _mesh_files(job, mesh, simplified.mesh, result)
-    clock.lap("mesh_files")
-    timings["total"] = clock.total()
 
 
 class _Stopwatch:
