@@ -52,8 +52,8 @@ than anti-aliasing already does. :data:`FLIP_ABLATION` records the switch sizes 
 
 from __future__ import annotations
 
+import io
 import math
-import os
 import time
 from pathlib import Path
 
@@ -170,10 +170,12 @@ def supersampled_images(original: Mesh, protocol, size: int,
         block = view.reshape(size, factor, size, factor, 3).astype(np.float64)
         images[i] = np.rint(block.mean(axis=(1, 3))).astype(np.uint8)
     if path is not None:
+        from bench.io.atomic import write_atomic
+
+        buffer = io.BytesIO()
+        np.save(buffer, images)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npy")
-        np.save(tmp, images)
-        os.replace(tmp, path)
+        write_atomic(path, buffer.getvalue())
     return images
 
 
@@ -219,10 +221,10 @@ def original_floor(original: Mesh, protocol, size: int, reference: np.ndarray | 
     values = {"flip": flip_mean(reference, drawn, views=views)[0],
               "d_rms": d_rms(reference, drawn)[0]}
     if path is not None:
+        from bench.io.atomic import write_atomic
+
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(json.dumps(values))
-        os.replace(tmp, path)
+        write_atomic(path, json.dumps(values))
     return values["flip"], values["d_rms"]
 
 
