@@ -5,7 +5,7 @@ rendering every view of both ways."""
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from conftest import blob
@@ -75,6 +75,7 @@ finite = st.floats(min_value=0.0, max_value=1e6, allow_nan=False)
 @given(ca=finite, base=finite, weight=st.floats(min_value=1e-3, max_value=1e3),
        sums=st.lists(st.floats(min_value=0.0, max_value=1e3), min_size=1, max_size=20),
        split=st.integers(min_value=0, max_value=20))
+@example(ca=5e-324, base=5e-324, weight=0.5, sums=[5e-324], split=0)  # subnormal costs
 def test_a_sum_past_the_losing_sum_loses_in_any_order(ca, base, weight, sums, split):
     """Whatever order the threads add the views' |dH| in, a running sum past the bound
     means the cost summed in view order is above ``ca``."""

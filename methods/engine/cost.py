@@ -271,6 +271,10 @@ def _first_then_other(u, v, first, other, mesh, rules, terms, scratch, images):
     return first, other
 
 
+#: The smallest normal double (np.finfo(float).tiny).
+_TINY = 2.2250738585072014e-308
+
+
 @njit(cache=True, inline="always")
 def _losing_sum(ca, base, weights):
     """The sum of |dH| past which a cost ``base`` + ``weights.entropy`` × that sum is
@@ -279,7 +283,9 @@ def _losing_sum(ca, base, weights):
     changes can be negative)."""
     if weights.image != 0.0 or not weights.entropy > 0.0:
         return np.inf
-    slack = 1e-9 * (abs(ca) + abs(base))
+    # relative, and never below the smallest normal double: costs of a few subnormals
+    # would otherwise leave no margin at all (0.5 * 5e-324 rounds to 0)
+    slack = 1e-9 * (abs(ca) + abs(base)) + _TINY
     return (ca - base + slack) / weights.entropy * (1.0 + 1e-9)
 
 
