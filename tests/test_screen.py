@@ -43,8 +43,10 @@ def _oracle(sizes, values, threshold, steps=20000):
 @given(st.lists(st.integers(1, 4096), min_size=2, max_size=7, unique=True),
        st.data(), st.floats(0.0, 0.2))
 def test_switch_size_matches_the_oracle(sizes, data, threshold):
-    values = data.draw(st.lists(st.floats(0.0, 0.3, allow_nan=False), min_size=len(sizes),
-                                max_size=len(sizes)))
+    # no subnormal errors: the oracle's own interpolation (np.interp) rounds them to 0
+    # or to 5e-324 between grid points, so it cannot be the reference there
+    values = data.draw(st.lists(st.floats(0.0, 0.3, allow_nan=False, allow_subnormal=False),
+                                min_size=len(sizes), max_size=len(sizes)))
     value, bound = switch_size(sizes, values, threshold)
     by_size = dict(zip(sizes, values))
     largest, smallest = max(sizes), min(sizes)
