@@ -191,14 +191,14 @@ def faces_needed_figure(rows: list[dict], model: str,
 def faces_needed_chart(rows: list[dict], model: str, path: Path,
                        sizes=(32, 45, 64, 91, 128, 181, 256, 362, 512)) -> Path | None:
     """:func:`faces_needed_figure` written to ``path`` as PNG; None without data."""
+    from bench.report.plots import pyplot
+
     fig = faces_needed_figure(rows, model, sizes)
     if fig is None:
         return None
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=100, bbox_inches="tight")
-    from bench.report.plots import pyplot
-
     pyplot().close(fig)
     return path
 
