@@ -91,6 +91,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.core import progress
 from bench.core.errors import ParamError
 from bench.core.mesh import Mesh
 from bench.core.method import Method, SimplifyResult, bounded
@@ -311,11 +312,13 @@ class EntropyTwin(Method):
         pre_faces = PRESIMPLIFY_RATIO * target_faces if p.presimplify_faces == 0 \
             else p.presimplify_faces
         if 0 < pre_faces < mesh.n_faces:  # seams closed, charts kept, UVs by GH98 quadrics
+            progress.stage(f"pre-simplifying to {pre_faces} faces (quadrics)")
             pre = simplify_mesh(mesh, pre_faces, Policy(texture_weight=1.0))
             work = pre.mesh
             stats["presimplify_collapses"] = pre.stats["collapses"]
         stats["presimplified_faces"] = work.n_faces
         stats["setup_seconds"] = time.perf_counter() - start
+        progress.stage("collapsing by viewpoint entropy")
         result = simplify_mesh(work, target_faces, self.policy(canny), borders=borders,
                                image=term)
         out = result.mesh

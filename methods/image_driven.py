@@ -46,6 +46,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+from bench.core import progress
 from bench.core.errors import ParamError
 from bench.core.mesh import Mesh
 from bench.core.method import Method, SimplifyResult, bounded
@@ -116,6 +117,7 @@ class ImageDriven(Method):
         pre_faces = p.presimplify_faces or PRESIMPLIFY_RATIO * target_faces
         work = mesh
         if pre_faces < mesh.n_faces:
+            progress.stage(f"pre-simplifying to {pre_faces} faces (memoryless)")
             pre = simplify_mesh(mesh, pre_faces, Policy(
                 placement="memoryless", quadric_weight=0.0, memoryless_weight=1.0,
                 boundary_weight=0.0))
@@ -136,6 +138,7 @@ class ImageDriven(Method):
         # memoryless placement (§4.1), the image cost (§4.2) and the geometric tie-breaker
         policy = Policy(placement="memoryless", quadric_weight=0.0,
                         memoryless_weight=p.geometry_weight, boundary_weight=0.0)
+        progress.stage("collapsing by image error")
         result = simplify_mesh(work, target_faces, policy, image=term)
         stats["image_seconds"] = time.perf_counter() - t
         for key, value in result.stats.items():

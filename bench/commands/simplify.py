@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 
 from bench.catalog import parse_model_spec, resolve_model
+from bench.commands.progress_bar import terminal_progress
 from bench.core.errors import InputError
 from bench.core.method import parse_params, resolve_target, run_method
 from bench.core.registry import registry
@@ -131,7 +132,8 @@ def run(args) -> int:
     inputs = _inputs(mesh, [Path(args.output)], args.force)
     target = resolve_target(mesh.n_faces, faces[0] if faces else None,
                             ratios[0] if ratios else None)
-    result = run_method(method_cls(params), mesh, target)
+    with terminal_progress(f"{mesh.name}: {method_cls.name}"):
+        result = run_method(method_cls(params), mesh, target)
     written = save_mesh(_surfaced(result.mesh, mesh), args.output, inputs=inputs,
                         force=args.force)
     seconds = result.stats.get("wall_seconds", 0.0)
@@ -169,8 +171,9 @@ def run_chain(args, method_cls, params, faces, ratios) -> int:
 
     report = functools.partial(_report_level, mesh.name, method_cls.name, args.chain)
     start = time.perf_counter()
-    levels = build_levels(method, mesh, targets, chain=args.chain, protocol=protocol,
-                          progress=True, on_level=report)
+    with terminal_progress(f"{mesh.name}: {method_cls.name}"):
+        levels = build_levels(method, mesh, targets, chain=args.chain, protocol=protocol,
+                              progress=True, on_level=report)
     seconds = time.perf_counter() - start
     files = save_lods([(level_name(0), mesh)] + [(lv.name, _surfaced(lv.result.mesh, mesh))
                                                  for lv in levels],

@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from bench.core import progress
 from bench.core.mesh import Mesh, compact
 
 __all__ = ["Cut", "MultiTriangulation", "build_mt", "from_log"]
@@ -243,6 +244,7 @@ def build_mt(mesh: Mesh, texture_weight: float = 1.0, target_faces: int = 1,
         raise ValueError(f"texture_weight must be >= 0, got {texture_weight}")
     policy = Policy(placement="optimal", texture_weight=texture_weight,
                     boundary_weight=boundary_weight)
+    progress.stage("building the Multi-Triangulation")
     result = simplify_mesh(mesh, max(1, int(target_faces)), policy)
     mt = from_log(mesh, result.log)
     mt.stats = {**result.stats, "engine_stop_reason": result.stop_reason}
