@@ -337,10 +337,13 @@ def _weld(positions: np.ndarray, faces: np.ndarray) -> Welded:
     corners = np.array([[0, 1], [1, 2], [2, 0]])
     render_he = faces[:, corners].reshape(-1, 2)
     welded_he = wfaces[:, corners].reshape(-1, 2)
-    key = np.sort(welded_he, axis=1)
-    edges, edge_of, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    edge_of = edge_of.reshape(-1)
-    edges = edges.astype(np.int32).reshape(-1, 2)
+    # An undirected edge (a, b), a <= b, as the number a * n + b: unique in the same
+    # order as the pairs, and an order of magnitude faster than unique rows.
+    key = np.sort(welded_he, axis=1).astype(np.int64)
+    n = max(len(unique), 1)
+    codes, edge_of, count = np.unique(key[:, 0] * n + key[:, 1], return_inverse=True,
+                                      return_counts=True)
+    edges = np.stack([codes // n, codes % n], axis=1).astype(np.int32).reshape(-1, 2)
 
     # A manifold edge is a seam when its two half-edges use different render vertices.
     # Render endpoints are ordered by their welded vertex so both sides compare equal

@@ -1102,10 +1102,12 @@ def _scan_obj(path: Path) -> dict:
     """
     data = path.read_bytes()
     _, encoding = _decode(data)
-    lines = _ObjLines()
-    for lineno, line in enumerate(io.BytesIO(data), 1):
-        lines.read(path, lineno, line, encoding)
-    lines.check_ranges(path)
+    lines = _ObjLines.triangles(path, data, encoding)
+    if lines is None:  # not the common case: line by line, with the line of any error
+        lines = _ObjLines()
+        for lineno, line in enumerate(io.BytesIO(data), 1):
+            lines.read(path, lineno, line, encoding)
+        lines.check_ranges(path)
     mtl = _scan_mtls(path, lines.mtllibs, encoding)
     text, concave = _ear_clip(data.decode(encoding), lines.big) if lines.big else (None, 0)
     if concave == 0 and encoding == "utf-8" and "latin-1" not in mtl["encodings"]:
@@ -1124,6 +1126,20 @@ def _scan_obj(path: Path) -> dict:
 _OBJ_HEADS = {b"v ": 0, b"v\t": 0, b"vt": 1, b"vn": 2}
 
 
+#: What :meth:`_ObjLines.triangles` reads: face lines (their corners), a corner's form
+#: with every number as 1 -> (a pattern for such corners, with indices of at most 17
+#: digits, which an int64 holds; the index kinds in it), the heads of v, vt and vn
+#: lines, and mtllib and usemtl lines.
+_FACE_LINE = re.compile(rb"^f[ \t]([^\n]*)", re.M)
+_CORNER_SHAPE = re.compile(rb"[0-9]+")
+_INDEX = rb"[0-9]{1,17}"
+_CORNER_FORMS = {b"1": (_INDEX, (0,)), b"1/1": (_INDEX + b"/" + _INDEX, (0, 1)),
+                 b"1//1": (_INDEX + b"//" + _INDEX, (0, 2)),
+                 b"1/1/1": (_INDEX + b"/" + _INDEX + b"/" + _INDEX, (0, 1, 2))}
+_VERTEX_HEADS = ((b"v ", b"v\t"), (b"vt ", b"vt\t"), (b"vn ", b"vn\t"))
+_MATERIAL_LINE = re.compile(rb"^(?:mtllib|usemtl)[^\n]*\n?", re.M)
+
+
 class _ObjLines:
     """What :func:`_scan_obj` gathers from an OBJ's lines, one line at a time."""
 
@@ -1136,6 +1152,36 @@ class _ObjLines:
         self.worst = [None, None, None]  # per kind: first index <= 0 out of range
         self.mtllibs = []
         self.usemtl: dict[str, None] = {}  # material names in order of first use
+
+    @classmethod
+    def triangles(cls, path: Path, data: bytes, encoding: str) -> _ObjLines | None:
+        """The common case read as a whole: every face a triangle whose corners all have
+        the same form (``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``), every index positive
+        and defined. None otherwise: :meth:`read`, line by line, then finds what is
+        different, and the line of any error. Both read the same lines the same way."""
+        faces = _FACE_LINE.findall(data)
+        first = faces[0].split()[:1] if faces else None
+        form = _CORNER_FORMS.get(_CORNER_SHAPE.sub(b"1", first[0])) if first else None
+        if form is None:
+            return None
+        corner, kinds = form
+        triangle = re.compile(rb"^[ \t]*%s[ \t]+%s[ \t]+%s[ \t\r]*$" % ((corner,) * 3), re.M)
+        tails = b"\n".join(faces)
+        if len(triangle.findall(tails)) != len(faces):
+            return None
+        indices = np.fromstring(tails.replace(b"/", b" ").replace(b"\r", b" "),
+                                dtype=np.int64, sep=" ")
+        indices = indices.reshape(len(faces) * 3, len(kinds))
+        lines = cls()
+        lines.counts = [sum(data.startswith(head) + data.count(b"\n" + head)
+                            for head in heads) for heads in _VERTEX_HEADS]
+        for column, kind in enumerate(kinds):
+            if indices[:, column].min() < 1 or indices[:, column].max() > lines.counts[kind]:
+                return None
+        if b"mtllib" in data or b"usemtl" in data:
+            for match in _MATERIAL_LINE.finditer(data):
+                lines.read(path, 0, match.group(0), encoding)
+        return lines
 
     def read(self, path: Path, lineno: int, line: bytes, encoding: str) -> None:
         head = line[:2]
