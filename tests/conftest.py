@@ -12,6 +12,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
+
+# Property tests draw the same examples on every run and machine, so a run fails only
+# on a change of the code; ``pytest --hypothesis-profile explore`` searches afresh
+# (with ten times the examples) for cases to add.
+settings.register_profile("fixed", derandomize=True, deadline=None)
+settings.register_profile("explore", max_examples=1000, deadline=None)
+settings.load_profile("fixed")
 
 # -- hand-built meshes ------------------------------------------------------------------
 
