@@ -316,6 +316,7 @@ class EntropyTwin(Method):
             pre = simplify_mesh(mesh, pre_faces, Policy(texture_weight=1.0))
             work = pre.mesh
             stats["presimplify_collapses"] = pre.stats["collapses"]
+            del pre  # its log and quadrics, while the image term works
         stats["presimplified_faces"] = work.n_faces
         stats["setup_seconds"] = time.perf_counter() - start
         progress.stage("collapsing by viewpoint entropy")

@@ -123,6 +123,7 @@ class ImageDriven(Method):
                 boundary_weight=0.0))
             work = pre.mesh
             stats["presimplify_collapses"] = pre.stats["collapses"]
+            del pre  # its log and quadrics, before the reference renders of the input
         stats["presimplified_faces"] = work.n_faces
         stats["presimplify_seconds"] = time.perf_counter() - start
 

@@ -377,3 +377,26 @@ def test_a_probe_says_whether_the_scan_changes_a_pixel(xs, ys, zs, c_lo, r_lo, e
     assert wins_any(_row(list(xs), list(ys), list(zs)), 0, 2, c_lo, c_hi, r_lo, r_hi, False,
                     depth, ids) == changed
     assert np.array_equal(depth, before_depth) and np.array_equal(ids, before_ids)
+
+
+@pytest.mark.parametrize("shading,specular", [("flat", False), ("gouraud", True)])
+def test_views_rendered_a_few_at_a_time_are_the_views_rendered_at_once(monkeypatch, shading,
+                                                                       specular):
+    """The rasterizer projects (and lights) as many views at a time as threads render
+    them; any chunking gives every view bit for bit, ids and luminance, as all 24 at
+    once did (a chunk of 24), whatever the number of threads."""
+    from methods.imaging import raster
+
+    mesh = icosphere(3)
+    mesh = mesh.replace(positions=mesh.positions * [1.0, 0.7, 1.3] + [0.2, -0.1, 0.05])
+    cameras = protocol_cameras(mesh)
+    cull = [v % 5 == 0 for v in range(len(cameras))]
+    rendered = {}
+    for step in (24, 1, 5):
+        monkeypatch.setattr(raster, "get_num_threads", lambda step=step: step)
+        ids, lum = raster._render(mesh, cameras, 48, 40, shading, specular, None, cull,
+                                  shade=True)
+        rendered[step] = (ids, lum.view(np.int64))
+    for step in (1, 5):
+        assert np.array_equal(rendered[step][0], rendered[24][0])
+        assert np.array_equal(rendered[step][1], rendered[24][1])

@@ -48,7 +48,7 @@ from collections import namedtuple
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, prange, types
+from numba import get_num_threads, njit, prange, types
 from numba.extending import intrinsic, overload
 
 from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, LUMA_B, LUMA_G, LUMA_R, SHADINGS
@@ -91,7 +91,7 @@ def vertex_light(positions, normals, eyes, ambient, diffuse, ks, shininess, spec
 
 # -- set-up in NumPy ----------------------------------------------------------------------
 
-def _project(positions: np.ndarray, cameras, width: int, height: int):
+def _project(positions: np.ndarray, cameras, width: int, height: int, origin=None):
     """Screen coordinates of every vertex in every view.
 
     Parameters
@@ -99,6 +99,9 @@ def _project(positions: np.ndarray, cameras, width: int, height: int):
     positions : ndarray of shape (n, 3) float64
     cameras : sequence of V metrics.views.Camera
     width, height : int
+    origin : ndarray of shape (3,), optional
+        The point the sums are taken relative to (default: the first camera's target).
+        A view's coordinates depend on it and on its own camera only, bit for bit.
 
     Returns
     -------
@@ -108,7 +111,7 @@ def _project(positions: np.ndarray, cameras, width: int, height: int):
     aspect = width / height
     mvp = np.stack([c.projection_matrix(aspect) @ c.view_matrix() for c in cameras])
     # Relative to the first target, like the evaluation renderer, for well-scaled sums.
-    origin = np.asarray(cameras[0].target, dtype=np.float64)
+    origin = np.asarray(cameras[0].target if origin is None else origin, dtype=np.float64)
     mvp = mvp.copy()
     mvp[:, :, 3] += mvp[:, :, :3] @ origin  # so that mvp @ (p - origin) == old mvp @ p
     rel = positions - origin
@@ -629,17 +632,10 @@ def _render(mesh, cameras, width, height, shading, specular, constants, cull_fro
         return ids, np.full(ids.shape if shade else (0, height, width), float(BACKGROUND))
     positions = np.ascontiguousarray(mesh.positions, dtype=np.float64)
     faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
-    screen = _project(positions, cameras, width, height)
     eyes = np.stack([np.asarray(c.eye, dtype=np.float64) for c in cameras])
     gouraud = shading == "gouraud"
     textured = bool(mesh.has_texture)
     shading = shading_constants(constants, specular, gouraud, textured)
-    if gouraud and shade:
-        light = vertex_light(positions, np.asarray(mesh.vertex_normals, dtype=np.float64),
-                             eyes, shading.ambient, shading.diffuse, shading.ks,
-                             shading.shininess, specular)
-    else:
-        light = np.zeros((1, 1, 4))
     face_n = (np.ascontiguousarray(mesh.face_normals, dtype=np.float64)
               if not gouraud and shade else np.zeros((1, 3)))
     if textured and shade:
@@ -648,8 +644,27 @@ def _render(mesh, cameras, width, height, shading, specular, constants, cull_fro
     else:
         uv, texture = np.zeros((1, 2)), np.zeros((1, 1, 3), np.uint8)
         shading = shading._replace(textured=False)
-    return _render_kernel(screen, positions, faces, face_n, light, uv, texture, eyes, shading,
-                          cull, width, height, float(BACKGROUND), shade)
+    # As many views at a time as threads render them: the screen coordinates (and vertex
+    # light) of all 24 views of a large mesh at once would take gigabytes. Each view's
+    # image depends on its own camera only, so the chunks change no pixel.
+    ids = np.empty((len(cameras), height, width), np.int32)
+    lum = np.empty((len(cameras) if shade else 0, height, width))
+    origin = np.asarray(cameras[0].target, dtype=np.float64)
+    step = max(1, get_num_threads())
+    normals = (np.asarray(mesh.vertex_normals, dtype=np.float64) if gouraud and shade
+               else None)
+    for first in range(0, len(cameras), step):
+        views = slice(first, first + step)
+        screen = _project(positions, cameras[views], width, height, origin)
+        light = (np.zeros((1, 1, 4)) if normals is None else
+                 vertex_light(positions, normals, eyes[views], shading.ambient,
+                              shading.diffuse, shading.ks, shading.shininess, specular))
+        ids[views], chunk = _render_kernel(screen, positions, faces, face_n, light, uv,
+                                           texture, eyes[views], shading, cull[views], width,
+                                           height, float(BACKGROUND), shade)
+        if shade:
+            lum[views] = chunk
+    return ids, lum
 
 
 def shading_constants(constants, specular: bool, gouraud: bool, textured: bool) -> Shading:
