@@ -113,8 +113,8 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
         terms, canny_stats = _canny_units(arrays, rules, terms, images)
     scratch = new_scratch(len(arrays.P))
     first = first_costs(arrays, rules, terms, scratch, images)
-    with views_shared(arrays, rules, scratch, images), watching_faces(arrays.falive,
-                                                                      target_faces):
+    with (views_shared(arrays, rules, scratch, images),
+          watching_faces(arrays.falive, target_faces)):
         stopped, evaluations, mismatches, rejects, log = _run(arrays, rules, terms, scratch,
                                                               images, prep.kinds, first)
     image_stats = {} if image is None else image.statistics(
