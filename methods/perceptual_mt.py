@@ -134,7 +134,9 @@ class PerceptualMT(Method):
     # 4: a node's view error is the largest of its subtree and refinement ranks equal
     #    errors by node index, so a view's cut does not depend on where refinement starts
     # 5: the engine's placement guard, parts and materials kept (the MT's collapses)
-    version = "5"
+    # 6: the MT's collapses go on past a stall with a wider fold-over limit (quadric's
+    #    stall rule), so its coarsest cut reaches budgets it stopped above
+    version = "6"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "

@@ -22,7 +22,7 @@ from typing import Literal
 
 from bench.core.mesh import Mesh
 from bench.core.method import Method, SimplifyResult, bounded
-from methods.engine.policy import Policy
+from methods.engine.policy import STALL_ROTATIONS, Policy
 from methods.engine.simplify import simplify_mesh
 
 __all__ = ["Quadric"]
@@ -33,8 +33,10 @@ class Quadric(Method):
     kernels = ("engine",)
     # 2: texture quadrics (GH98) on meshes with UVs; 3: a wedge merges once per
     # collapse (its quadric and UV were counted once per face of the edge); 4: the
-    # placement guard, parts and materials kept (methods.engine: real assets)
-    version = "4"
+    # placement guard, parts and materials kept (methods.engine: real assets); 5: the
+    # stall rule (a stalled run goes on with a wider fold-over limit; only results that
+    # stopped above their target change)
+    version = "5"
     summary = "Garland-Heckbert 97/98 quadrics (texture per wedge) on the suite's engine"
     reference = ("Garland & Heckbert, Surface simplification using quadric error metrics, "
                  "SIGGRAPH 1997; ... with color and texture, IEEE Visualization 1998")
@@ -47,12 +49,14 @@ class Quadric(Method):
         max_normal_rotation: float = bounded(90.0, gt=0, le=180)
         boundary_lock: bool = False
         texture_weight: float = bounded(1.0, ge=0)
+        stall: Literal["widen", "stop"] = "widen"
 
     def policy(self) -> Policy:
         p = self.params
         return Policy(placement=p.placement, boundary_weight=p.boundary_weight,
                       max_normal_rotation=p.max_normal_rotation, boundary_lock=p.boundary_lock,
-                      texture_weight=p.texture_weight)
+                      texture_weight=p.texture_weight,
+                      stall_rotations=(STALL_ROTATIONS if p.stall == "widen" else ()))
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         result = simplify_mesh(mesh, target_faces, self.policy())

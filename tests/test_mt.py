@@ -5,7 +5,7 @@ import pytest
 
 from bench.catalog.torus import make_torus
 from bench.core.mesh import Mesh
-from methods.engine.policy import Policy
+from methods.engine.policy import STALL_ROTATIONS, Policy
 from methods.engine.simplify import simplify_mesh
 from methods.mt.dag import Cut, build_mt, from_log
 
@@ -92,7 +92,8 @@ def _canonical(mesh):
 def test_coarsest_cut_is_the_engines_result(texture_weight):
     mesh = small_torus()
     mt = build_mt(mesh, texture_weight=texture_weight)
-    engine = simplify_mesh(mesh, 1, Policy(placement="optimal", texture_weight=texture_weight))
+    engine = simplify_mesh(mesh, 1, Policy(placement="optimal", texture_weight=texture_weight,
+                                           stall_rotations=STALL_ROTATIONS))
     coarse = mt.cut("coarsest").mesh()
     assert coarse.n_faces == engine.mesh.n_faces == mt.coarsest_faces
     np.testing.assert_allclose(_canonical(coarse), _canonical(engine.mesh), atol=1e-12)

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 from bench.core.mesh import Mesh
 from bench.io.atlas import Part, face_materials, pack_materials
 from methods.engine import Policy, simplify_mesh
+from methods.engine.policy import STALL_ROTATIONS
 from methods.engine.state import WEDGE_TARGETS_CAP
 from metrics.parts import parts_lost
 
@@ -185,6 +186,61 @@ def test_no_vertex_of_the_truck_leaves_its_bounding_box():
     for target in (362, 109):
         result = simplify_mesh(mesh, target, Policy(texture_weight=1.0))
         assert _within_box(mesh, result.mesh)
+
+
+# -- the stall rule ----------------------------------------------------------------------
+
+def test_the_stall_rule_takes_the_truck_to_its_target():
+    """quadric stopped at 164 faces for 109 on the milk truck: every candidate left
+    turned some face by more than 90 degrees at the quadric's point. The stall rule goes
+    on with a wider fold-over limit; without it the run stops, and says why."""
+    from methods.quadric import Quadric
+
+    mesh = quiet_load(asset("milk-truck/CesiumMilkTruck.glb"))
+    stopped = Quadric(Quadric.Params(stall="stop")).simplify(mesh, 109)
+    assert stopped.mesh.n_faces == 164
+    assert "no valid collapse remains at 164 faces" in stopped.stop_reason
+    assert "fold-over" in stopped.stop_reason
+    widened = Quadric(Quadric.Params()).simplify(mesh, 109)
+    assert widened.mesh.n_faces in (108, 109) and widened.stop_reason is None
+    assert widened.stats["stall_collapses"] == [28]  # all at 120 degrees
+    assert parts_lost(mesh, widened.mesh) == {"components": 0, "area": 0.0, "materials": 0}
+    assert _within_box(mesh, widened.mesh)
+
+
+def test_the_stall_rule_changes_nothing_that_reached_its_target():
+    from methods.quadric import Quadric
+
+    mesh = quiet_load("vehicle")
+    for target in (362, 108):
+        runs = [Quadric(Quadric.Params(stall=s)).simplify(mesh, target) for s in ("widen",
+                                                                                   "stop")]
+        assert runs[0].stats["stall_collapses"] == []
+        np.testing.assert_array_equal(runs[0].mesh.positions, runs[1].mesh.positions)
+        np.testing.assert_array_equal(runs[0].mesh.faces, runs[1].mesh.faces)
+
+
+def test_a_stalled_log_joined_to_its_stall_phases_replays_to_the_result():
+    """The MT is built from the engine's log, the stall phases' collapses appended
+    (methods.engine.simplify._joined): its coarsest cut is the engine's result."""
+    from methods.mt.dag import build_mt
+
+    mesh = quiet_load(asset("milk-truck/CesiumMilkTruck.glb"))
+    mt = build_mt(mesh, texture_weight=1.0)
+    engine = simplify_mesh(mesh, 1, Policy(texture_weight=1.0,
+                                           stall_rotations=STALL_ROTATIONS))
+    assert sum(engine.stats["stall_collapses"]) > 0
+    coarse = mt.cut("coarsest").mesh()
+    assert coarse.n_faces == engine.mesh.n_faces == mt.coarsest_faces
+    np.testing.assert_allclose(np.sort(coarse.positions[coarse.faces].reshape(-1, 9), 0),
+                               np.sort(engine.mesh.positions[engine.mesh.faces]
+                                       .reshape(-1, 9), 0), atol=1e-12)
+
+
+@pytest.mark.parametrize("rotations", [(90.0,), (150.0, 120.0), (120.0, 181.0)])
+def test_stall_rotations_must_widen(rotations):
+    with pytest.raises(ValueError, match="stall_rotations must increase"):
+        Policy(stall_rotations=rotations)
 
 
 @pytest.mark.parametrize("model", ["kit", "vehicle"])

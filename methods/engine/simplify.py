@@ -28,6 +28,7 @@ from methods.engine.state import (
     N_KINDS,
     WEDGE_QUADRIC_SIZE,
     Images,
+    Log,
     MeshArrays,
     Rules,
     Terms,
@@ -112,11 +113,20 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     if policy.canny_weight != 0.0 and policy.canny_units == "base-cost":
         terms, canny_stats = _canny_units(arrays, rules, terms, images)
     scratch = new_scratch(len(arrays.P))
-    first = first_costs(arrays, rules, terms, scratch, images)
-    with (views_shared(arrays, rules, scratch, images),
-          watching_faces(arrays.falive, target_faces)):
-        stopped, evaluations, mismatches, rejects, log = _run(arrays, rules, terms, scratch,
-                                                              images, prep.kinds, first)
+    stopped, evaluations, mismatches, rejects, log = _loop(arrays, rules, terms, scratch,
+                                                           images, prep.kinds)
+    stall_collapses = []
+    for degrees in policy.stall_rotations:  # the stall rule (Policy.stall_rotations)
+        if not stopped or _out_of_collapses(log, rules):
+            break
+        rules = rules._replace(cos_limit=math.cos(math.radians(degrees)),
+                               max_collapses=rules.max_collapses
+                               - int(log.count[LOG_COLLAPSES]))
+        stopped, more, mm, rj, rest = _loop(arrays, rules, terms, scratch, images,
+                                            prep.kinds)
+        stall_collapses.append(int(rest.count[LOG_COLLAPSES]))
+        evaluations, mismatches, rejects = evaluations + more, mismatches + mm, rejects + rj
+        log = _joined(log, rest)
     image_stats = {} if image is None else image.statistics(
         mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
         arrays.vhead, arrays.cnext, arrays.valive, prep.lo, prep.scale)
@@ -134,6 +144,8 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
                   f"candidates rejected: {counts or 'none'}")
     stats = _statistics(n, evaluations, mismatches, rejects, prep.kinds, verify,
                         time.perf_counter() - start)
+    if policy.stall_rotations:
+        stats["stall_collapses"] = stall_collapses
     stats.update(image_stats)
     stats.update(canny_stats)
     if tiles is not None:
@@ -142,6 +154,46 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     return EngineResult(simplified, reason, stats, out_log, quadrics=Q, vertex_alive=valive,
                         images=(images.img.Y if image is not None
                                 and keeps_luminance(images.img) else None))
+
+
+def _loop(arrays: MeshArrays, rules: Rules, terms, scratch, images, kinds):
+    """Every live edge costed (:func:`first_costs`), then the loop (:func:`_run`), with
+    the progress bar and the views shared among the job's threads."""
+    first = first_costs(arrays, rules, terms, scratch, images)
+    with (views_shared(arrays, rules, scratch, images),
+          watching_faces(arrays.falive, rules.target)):
+        return _run(arrays, rules, terms, scratch, images, kinds, first)
+
+
+def _out_of_collapses(log, rules: Rules) -> bool:
+    """Whether the loop took all ``rules.max_collapses`` collapses it was allowed."""
+    return int(log.count[LOG_COLLAPSES]) >= rules.max_collapses
+
+
+def _joined(first, then):
+    """One :data:`~methods.engine.state.Log` of the collapses of ``first`` followed by
+    those of ``then``, each trimmed to its counts, the CSR starts of ``then`` shifted."""
+    n = [int(log.count[LOG_COLLAPSES]) for log in (first, then)]
+    used = {name: [int(log.count[k]) for log in (first, then)]
+            for name, k in (("changed", LOG_CHANGED), ("pairs", LOG_PAIRS),
+                            ("wedges", LOG_WEDGES), ("wedge_uv", LOG_WEDGES))}
+
+    def rows(name):
+        return np.concatenate([getattr(first, name)[:n[0]], getattr(then, name)[:n[1]]])
+
+    def lists(name):
+        return np.concatenate([getattr(first, name)[:used[name][0]],
+                               getattr(then, name)[:used[name][1]]])
+
+    def starts(name, shift):
+        return np.concatenate([getattr(first, name)[:n[0] + 1],
+                               getattr(then, name)[1:n[1] + 1] + shift])
+
+    return Log(rows("cost"), rows("removed"), rows("kept"), rows("pos"), rows("faces"),
+               starts("start", used["changed"][0]), lists("changed"),
+               starts("pair_start", used["pairs"][0]), lists("pairs"),
+               starts("wedge_start", used["wedges"][0]), lists("wedges"), lists("wedge_uv"),
+               first.count + then.count)
 
 
 #: What :func:`_prepare` hands on: positions ``P0`` (input units) and ``P`` (unit

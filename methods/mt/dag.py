@@ -230,12 +230,13 @@ def build_mt(mesh: Mesh, texture_weight: float = 1.0, target_faces: int = 1,
         Weight of UVs in the Garland–Heckbert 1998 texture quadrics (the texture
         deviation proxy, see the module docstring); 0 uses the 1997 quadric.
     target_faces : int
-        Where the engine stops (it also stops when no valid collapse remains); the
-        coarsest cut has about this many faces.
+        Where the engine stops (it also stops when no valid collapse remains, after
+        the stall rule of ``quadric``: ``Policy.stall_rotations``); the coarsest cut
+        has about this many faces.
     boundary_weight : float
         The engine's boundary-plane weight.
     """
-    from methods.engine.policy import Policy
+    from methods.engine.policy import STALL_ROTATIONS, Policy
     from methods.engine.simplify import simplify_mesh
 
     if mesh.n_faces == 0:
@@ -243,7 +244,7 @@ def build_mt(mesh: Mesh, texture_weight: float = 1.0, target_faces: int = 1,
     if texture_weight < 0:
         raise ValueError(f"texture_weight must be >= 0, got {texture_weight}")
     policy = Policy(placement="optimal", texture_weight=texture_weight,
-                    boundary_weight=boundary_weight)
+                    boundary_weight=boundary_weight, stall_rotations=STALL_ROTATIONS)
     progress.stage("building the Multi-Triangulation")
     result = simplify_mesh(mesh, max(1, int(target_faces)), policy)
     mt = from_log(mesh, result.log)
