@@ -13,6 +13,12 @@ position minimises the sum over the merged vertex's wedges of each wedge quadric
 minimised over its own UV, and each wedge's new UV is that minimiser. ``texture_weight``
 (w, on geometry normalised to a unit bounding-box diagonal) defaults to 1, as MeshLab's
 ``extratcoordw``; 0 gives the 1997 metric with UVs interpolated along the edge.
+
+When no valid collapse remains above the target (every candidate left would fold a
+face over at the quadric's point, as on a coarse multi-part asset), the run goes on
+with the fold-over limit widened to 120°, 150° and 180° in turn (``stall="widen"``,
+the engine's stall rule: ``Policy.stall_rotations``); ``stall="stop"`` stops there
+and says why. Results that reach their target without it are the same either way.
 """
 
 from __future__ import annotations
