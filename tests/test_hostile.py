@@ -1040,6 +1040,13 @@ def test_the_built_in_methods_declare_ranges():
 
 # -- Ctrl-C in bench run ---------------------------------------------------------------------
 
+def _ctrl_c_as_in_a_terminal():
+    """In the child before it starts: Ctrl-C has its default meaning, as in a terminal's
+    foreground job, even when the tests run where SIGINT is ignored (a shell's
+    background job), which the child would otherwise inherit."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_prints_one_line_and_keeps_the_finished_records(tmp_path):
     """Ctrl-C reaches the whole foreground process group (the run and its workers): the
     workers ignore it and are stopped by the run, which says in one line what it kept.
@@ -1051,7 +1058,8 @@ def test_ctrl_c_prints_one_line_and_keeps_the_finished_records(tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "bench", "run", "--models", "ico.obj", "--methods", "raise,hang",
          "--faces", "40", "--jobs", "1", "--out", "out", "--no-report"], cwd=tmp_path, env=env,
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        preexec_fn=_ctrl_c_as_in_a_terminal)
     records = tmp_path / "out" / "records"
     deadline = time.monotonic() + 300
     while not (records.is_dir() and any(records.glob("*.json"))):
