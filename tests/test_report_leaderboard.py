@@ -245,9 +245,9 @@ def test_a_point_that_reused_a_build_is_hollow_and_off_the_front():
 def test_the_switch_size_column_shows_bounds_as_bounds():
     records = [views_record("a", BASE), views_record("b", shifted(1.0)),
                views_record("c", shifted(2.0))]
-    records[0]["screen"] = {"switch_px": {"value": 512.0, "bound": ">="}}
-    records[1]["screen"] = {"switch_px": {"value": 90.6, "bound": None}}
-    records[2]["screen"] = {"switch_px": {"value": 32.0, "bound": "<"}}
+    for record, (value, bound) in zip(records, ((512.0, ">="), (90.6, None), (32.0, "<"))):
+        record["screen"] = {"switch_px": {"value": value, "bound": bound},
+                            "switch_px_rms": {"value": value, "bound": bound}}
     page = leaderboard_html(records)
     assert "switch px" in page
     cells = [re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<td[^>]*>.*?</td>", page)]
@@ -272,3 +272,28 @@ def test_the_screen_section_lists_each_level_and_the_faces_needed():
     assert any(row.endswith("|400:&gt;=512 200:150 100:40||200||200||") for row in rows), rows
     assert "<img" in html
     assert _screen_sizes([views_record("a", BASE)], Inline(), "m") == ""
+
+
+def _screened(label, faces, value, bound=None, model="m"):
+    """A record of ``faces`` faces whose switch size is ``value`` (with its bound)."""
+    r = views_record(label, BASE, model=model, target=faces, faces=faces)
+    r["screen"] = {"switch_px": {"value": value, "bound": bound},
+                   "switch_px_rms": {"value": value, "bound": bound}}
+    return r
+
+
+def test_the_leaderboard_says_the_fewest_faces_at_128_px():
+    records = [_screened("a", 1000, 512.0, ">="), _screened("a", 500, 130.0),
+               _screened("a", 250, 90.0), _screened("b", 1000, 200.0),
+               _screened("b", 500, 100.0), _screened("c", 500, 32.0, "<")]
+    html = leaderboard_html(records)
+    table = html[html.index("<table id='faces-at'"):]
+    table = table[:table.index("</table>")]
+    # a needs 500 (250 switches at 90 < 128); b needs 1000; c never gets there
+    assert "<td>m</td><td>500</td><td>a</td><td>b 1000</td>" in table
+    assert "Faces at 128 px" in html
+
+
+def test_no_faces_at_table_without_screen_sizes():
+    html = leaderboard_html([views_record("a", BASE), views_record("b", shifted(1.0))])
+    assert "faces-at" not in html

@@ -291,6 +291,30 @@ def _summary(groups: list[Group], styles) -> str:
             f"<th>losses</th></tr></thead><tbody>{rows}</tbody></table>")
 
 
+#: The screen size of the leaderboard's "faces at" table (issue: faces at 128 px).
+FACES_AT_PX = 128
+
+
+def _faces_at(records: list[dict]) -> str:
+    """With screen sizes evaluated (``--screen-sizes``, the lod suites): per model the
+    fewest faces indistinguishable from the original at :data:`FACES_AT_PX`, the
+    methods that get there and the next ones; empty otherwise."""
+    from bench.report.screen_tables import best_at, switch_rows
+
+    head, *body = best_at(switch_rows(records), FACES_AT_PX)
+    if not body:
+        return ""
+    rows = "".join("<tr>" + "".join(f"<td>{html.escape(cell)}</td>" for cell in row)
+                   + "</tr>" for row in body)
+    return (f"<h3>Faces at {FACES_AT_PX} px</h3><p class='note'>Per model, the fewest "
+            "faces of the run's budgets whose result is indistinguishable from the "
+            f"original where its bounding sphere spans {FACES_AT_PX} pixels (switch_px "
+            f"&ge; {FACES_AT_PX}; docs/screen.md), and the methods that get there.</p>"
+            f"<table id='faces-at' class='sortable'><thead><tr>"
+            + "".join(f"<th>{html.escape(h)}</th>" for h in head)
+            + f"</tr></thead><tbody>{rows}</tbody></table>")
+
+
 def leaderboard_html(records: list[dict]) -> str:
     """The leaderboard section of ``records``: the summary across models, then a table
     per model, budget and shading; empty when no job was evaluated."""
@@ -312,4 +336,4 @@ def leaderboard_html(records: list[dict]) -> str:
             f"below each ranking, not in it; past the first {SHOWN_ROWS} a tick shows "
             "the rest. Across models: a method's mean rank, its wins, "
             "ties for first and losses (groups where the first place beats it).</p>"
-            f"{_summary(groups, styles)}{tables}</section>")
+            f"{_summary(groups, styles)}{_faces_at(records)}{tables}</section>")
