@@ -17,30 +17,25 @@ import warnings
 from numba.core.dispatcher import Dispatcher
 
 from bench.core.registry import registry
+from bench.records.suites import ENGINE_METHODS
 from bench.run.warmup import warm_up
-
-ENGINE_METHODS = "quadric,memoryless,canny-texture,image-driven,perceptual-mt,entropy-twin"
 
 
 def main() -> None:
-    names = (sys.argv[1] if len(sys.argv) > 1 else ENGINE_METHODS).split(",")
+    names = sys.argv[1].split(",") if len(sys.argv) > 1 else list(ENGINE_METHODS)
     warnings.simplefilter("ignore")
     start = time.perf_counter()
     for name in names:
         warm_up(registry("method").load(name))
     seconds = time.perf_counter() - start
-    hits = misses = 0
-    compiled = set()
-    for module in list(sys.modules.values()):
-        if not getattr(module, "__name__", "").startswith(("bench", "methods", "metrics")):
-            continue
-        for value in vars(module).values():
-            if isinstance(value, Dispatcher):
-                hits += sum(value.stats.cache_hits.values())
-                missed = sum(value.stats.cache_misses.values())
-                misses += missed
-                if missed:
-                    compiled.add(f"{module.__name__}.{value.py_func.__name__}")
+    # each dispatcher once, though every module that imports it holds it too
+    dispatchers = {id(value): value for module in list(sys.modules.values())
+                   if getattr(module, "__name__", "").startswith(("bench", "methods", "metrics"))
+                   for value in vars(module).values() if isinstance(value, Dispatcher)}
+    hits = sum(sum(d.stats.cache_hits.values()) for d in dispatchers.values())
+    misses = sum(sum(d.stats.cache_misses.values()) for d in dispatchers.values())
+    compiled = {f"{d.py_func.__module__}.{d.py_func.__name__}" for d in dispatchers.values()
+                if sum(d.stats.cache_misses.values())}
     print(f"{','.join(names)}: warm-up {seconds:.2f} s; signatures read from the cache "
           f"{hits}, compiled {misses}" + (f" ({', '.join(sorted(compiled))})" if compiled else ""))
     sys.exit(1 if misses else 0)

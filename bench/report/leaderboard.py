@@ -300,19 +300,16 @@ def _faces_at(records: list[dict]) -> str:
     fewest faces indistinguishable from the original at :data:`FACES_AT_PX`, the
     methods that get there and the next ones; empty otherwise."""
     from bench.report.screen_tables import best_at, switch_rows
+    from bench.report.table import sortable_table
 
     head, *body = best_at(switch_rows(records), FACES_AT_PX)
     if not body:
         return ""
-    rows = "".join("<tr>" + "".join(f"<td>{html.escape(cell)}</td>" for cell in row)
-                   + "</tr>" for row in body)
     return (f"<h3>Faces at {FACES_AT_PX} px</h3><p class='note'>Per model, the fewest "
             "faces of the run's budgets whose result is indistinguishable from the "
             f"original where its bounding sphere spans {FACES_AT_PX} pixels (switch_px "
             f"&ge; {FACES_AT_PX}; docs/screen.md), and the methods that get there.</p>"
-            f"<table id='faces-at' class='sortable'><thead><tr>"
-            + "".join(f"<th>{html.escape(h)}</th>" for h in head)
-            + f"</tr></thead><tbody>{rows}</tbody></table>")
+            + sortable_table(head, body, "faces-at"))
 
 
 def leaderboard_html(records: list[dict]) -> str:

@@ -59,7 +59,7 @@ from bench.report.plots import (
     silhouette_figure,
 )
 from bench.report.styles import method_styles
-from bench.report.table import SCRIPT, summary_html
+from bench.report.table import SCRIPT, sortable_table, summary_html
 from bench.report.table import cell as _cell
 from bench.report.table import esc as _esc
 from bench.report.viewer import VIEWER_SCRIPT, Viewers, single_file_note
@@ -211,10 +211,7 @@ def _screen_sizes(own: list[dict], out, slug: str) -> str:
     fig = faces_needed_figure(rows, model)
     chart = "" if fig is None else _img(out.plot(fig, f"{slug}-screen"), "faces needed", out)
     head, *body = switch_table(rows)
-    table = ("<table class='sortable'><thead><tr>" + "".join(f"<th>{_esc(h)}</th>" for h in head)
-             + "</tr></thead><tbody>" + "".join(
-                 "<tr>" + "".join(f"<td>{_esc(c)}</td>" for c in row) + "</tr>" for row in body)
-             + "</tbody></table>")
+    table = sortable_table(head, body)
     return ("<h3>Screen sizes</h3><p class='note'>The size in pixels that the model's "
             "bounding sphere spans on screen, from which each result is indistinguishable "
             "from the original (switch_px: FLIP within the protocol's threshold of the "

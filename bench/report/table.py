@@ -25,7 +25,7 @@ from bench.records.results import OFF_TARGET_STATUS
 from bench.report import script
 from bench.report.cells import model_cell, number, resolved
 
-__all__ = ["SCRIPT", "cell", "esc", "summary_html"]
+__all__ = ["SCRIPT", "cell", "esc", "sortable_table", "summary_html"]
 
 SCRIPT = script("table.js")
 
@@ -42,6 +42,17 @@ _REASON_CHARS = 160
 def esc(value) -> str:
     """Any value from a record as HTML text (quotes escaped too, for attributes)."""
     return html.escape(str(value), quote=True)
+
+
+def sortable_table(head: list[str], body: list[list[str]], table_id: str | None = None) -> str:
+    """A table of plain strings (``head`` and rows of ``body``), every cell escaped, that
+    the page's script sorts by a click on a header."""
+    ident = f" id='{esc(table_id)}'" if table_id else ""
+    rows = "".join("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in row) + "</tr>"
+                   for row in body)
+    return (f"<table{ident} class='sortable'><thead><tr>"
+            + "".join(f"<th>{esc(h)}</th>" for h in head)
+            + f"</tr></thead><tbody>{rows}</tbody></table>")
 
 
 def cell(value) -> str:
