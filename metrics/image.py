@@ -29,6 +29,7 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 
 from bench.core.metric import Metric, Value
 from metrics.shading import LUMA_WEIGHTS, luminance  # re-exported: callers of the metrics use them
@@ -46,6 +47,43 @@ FLIP_PPD = 67.0
 _SSIM_SETTINGS = dict(gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
                       data_range=255)
 _SSIM_MIN_SIZE = 11  # the Gaussian window's width; smaller images have no valid window
+_SSIM_RADIUS = 5  # the window's half-width: skimage's int(3.5 * sigma + 0.5)
+
+#: How far FLIP's filters reach at FLIP_PPD, in pixels: its colour filter's radius
+#: ceil(3 · sqrt(0.04 / (2π²)) · ppd) = 10 (the widest of the three channels' Gaussians)
+#: and its edge and point filters' ceil(3 · 0.5 · 0.082 · ppd) = 9.
+_FLIP_REACH = 10
+
+
+# -- where two views differ --------------------------------------------------------------
+# Both metrics are local: a pixel's value depends only on the pixels within a fixed reach
+# of it, and is exactly "no difference" (SSIM 1, FLIP 0) where the two views agree over
+# all of that neighbourhood. So each view is evaluated on the box around its differing
+# pixels grown by twice the reach (the values inside the box grown by one reach are then
+# computed from exactly the pixels a whole-image evaluation uses), the rest is filled with
+# the exact "no difference", and the mean is taken over the whole view as before. The
+# numbers are the whole-image ones, bit for bit (tests/test_metrics_image.py compares
+# them); the protocol's views of a mesh cover about half of each image.
+
+def _differing_box(a: np.ndarray, b: np.ndarray, grow: int):
+    """(rows, cols) slices of the box holding every pixel where views ``a`` and ``b``
+    (H, W, 3) differ, grown by ``grow`` pixels and clipped to the image; None if the two
+    are identical."""
+    h, w = a.shape[:2]
+    differ = (a != b).reshape(h, -1)  # a row of all channels: reductions run 20x faster
+    rows = np.flatnonzero(differ.any(axis=1))
+    if rows.size == 0:
+        return None
+    cols = np.flatnonzero(differ.any(axis=0).reshape(w, -1).any(axis=1))
+    return (slice(max(0, rows[0] - grow), min(h, rows[-1] + 1 + grow)),
+            slice(max(0, cols[0] - grow), min(w, cols[-1] + 1 + grow)))
+
+
+def _inner(box, grow: int, shape) -> tuple[slice, slice]:
+    """``box`` (slices grown by 2·``grow``) shrunk by ``grow`` except where it meets the
+    image's edge, as slices into the box itself."""
+    return tuple(slice(0 if s.start == 0 else grow, (s.stop - s.start) - (0 if s.stop == n else grow))
+                 for s, n in zip(box, shape))
 
 
 # -- the view subset for FLIP ------------------------------------------------------------
@@ -132,10 +170,13 @@ def ssim_mean(original_images: np.ndarray, simplified_images: np.ndarray
               ) -> tuple[float, np.ndarray]:
     """Mean structural similarity of the views' luminance (Wang et al. 2004).
 
-    Uses :func:`skimage.metrics.structural_similarity` with the paper's settings: an
-    11×11 Gaussian window of sigma 1.5, population covariances, data range 255, and
+    The paper's settings, as :func:`skimage.metrics.structural_similarity` has them
+    (``gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=255``):
+    an 11×11 Gaussian window of sigma 1.5, population covariances, data range 255, and
     K1 = 0.01, K2 = 0.03. SSIM of each view is the mean of its SSIM map away from a
-    5-pixel border.
+    5-pixel border. The numbers are skimage's bit for bit; the map is computed here, on
+    the box where the views differ only (it is exactly 1 elsewhere), about four times
+    faster.
 
     Parameters
     ----------
@@ -154,16 +195,91 @@ def ssim_mean(original_images: np.ndarray, simplified_images: np.ndarray
        assessment: from error visibility to structural similarity. IEEE TIP 13(4),
        2004, equation 13.
     """
-    from skimage.metrics import structural_similarity
-
     a, b = _check_pair(original_images, simplified_images)
     if min(a.shape[1:3]) < _SSIM_MIN_SIZE:
         raise ValueError(f"SSIM needs images of at least {_SSIM_MIN_SIZE}×{_SSIM_MIN_SIZE} "
                          f"pixels (its Gaussian window), got {a.shape[1]}×{a.shape[2]}; "
                          "render larger views")
-    per_view = np.array([structural_similarity(luminance(a[v]), luminance(b[v]),
-                                               **_SSIM_SETTINGS) for v in range(len(a))])
+    per_view = np.array([_ssim_view(a[v], b[v]) for v in range(len(a))])
     return float(per_view.mean()), per_view
+
+
+def _ssim_view(a: np.ndarray, b: np.ndarray) -> float:
+    """The mean SSIM of one view pair, from :func:`_ssim_map` on the box where they
+    differ; the rest of the map is exactly 1."""
+    box = _differing_box(a, b, 2 * _SSIM_RADIUS)
+    if box is None:
+        return 1.0
+    r = _SSIM_RADIUS
+    # Where the box meets the image's edge, the window reads the image mirrored about it
+    # (scipy's "reflect", numpy's "symmetric"); elsewhere the box has the pixels itself.
+    pads = [(r if s.start == 0 else 0, r if s.stop == n else 0)
+            for s, n in zip(box, a.shape[:2])]
+    x = np.pad(luminance(a[box]), pads, mode="symmetric")
+    y = np.pad(luminance(b[box]), pads, mode="symmetric")
+    inner = _inner(box, r, a.shape[:2])
+    s_map = np.ones(a.shape[:2])
+    s_map[tuple(slice(s.start + i.start, s.start + i.stop) for s, i in zip(box, inner))] = \
+        _ssim_map(x, y, _SSIM_WEIGHTS, _SSIM_C1, _SSIM_C2)
+    return float(s_map[r:-r, r:-r].mean(dtype=np.float64))  # the border has no window
+
+
+def _gaussian_weights(sigma: float, radius: int) -> np.ndarray:
+    """scipy.ndimage's Gaussian taps (its ``_gaussian_kernel1d`` of order 0)."""
+    x = np.arange(-radius, radius + 1)
+    phi = np.exp(-0.5 / (sigma * sigma) * x ** 2)
+    return phi / phi.sum()
+
+
+_SSIM_WEIGHTS = _gaussian_weights(_SSIM_SETTINGS["sigma"], _SSIM_RADIUS)
+_SSIM_C1 = (0.01 * _SSIM_SETTINGS["data_range"]) ** 2  # (K1 L)², K1 = 0.01
+_SSIM_C2 = (0.03 * _SSIM_SETTINGS["data_range"]) ** 2  # (K2 L)², K2 = 0.03
+
+
+@njit(cache=True)
+def _ssim_map(x, y, w, c1, c2):  # pragma: no cover - compiled
+    """The SSIM map of two luminance images padded by the window's radius r on every
+    side, shape (H - 2r, W - 2r): skimage's ``structural_similarity`` with Gaussian
+    weights ``w`` and population covariances, with the same arithmetic in the same
+    order, so the values are skimage's bit for bit (tests/test_image_metrics.py checks).
+
+    The five local moments are filtered separably, rows then columns, each tap pair
+    summed first as scipy.ndimage's symmetric ``correlate1d`` does: x₀·w₀, then
+    (x₋ₖ + xₖ)·wₖ for k = r … 1. One output row at a time, so memory is two rows."""
+    r = (len(w) - 1) // 2
+    rows, cols = x.shape[0] - 2 * r, x.shape[1] - 2 * r
+    out = np.empty((rows, cols))
+    v = np.empty((5, x.shape[1]))   # the moments filtered down the columns, one row
+    f = np.empty((5, cols))         # and then along it
+    for i in range(rows):
+        c = i + r
+        for j in range(x.shape[1]):
+            a, b = x[c, j], y[c, j]
+            v[0, j], v[1, j], v[2, j] = a * w[r], b * w[r], (a * a) * w[r]
+            v[3, j], v[4, j] = (b * b) * w[r], (a * b) * w[r]
+        for k in range(-r, 0):
+            wk = w[r + k]
+            for j in range(x.shape[1]):
+                a0, a1, b0, b1 = x[c + k, j], x[c - k, j], y[c + k, j], y[c - k, j]
+                v[0, j] += (a0 + a1) * wk
+                v[1, j] += (b0 + b1) * wk
+                v[2, j] += (a0 * a0 + a1 * a1) * wk
+                v[3, j] += (b0 * b0 + b1 * b1) * wk
+                v[4, j] += (a0 * b0 + a1 * b1) * wk
+        for n in range(5):
+            for j in range(cols):
+                f[n, j] = v[n, j + r] * w[r]
+            for k in range(-r, 0):
+                wk = w[r + k]
+                for j in range(cols):
+                    f[n, j] += (v[n, j + r + k] + v[n, j + r - k]) * wk
+        for j in range(cols):
+            ux, uy = f[0, j], f[1, j]
+            vx, vy, vxy = f[2, j] - ux * ux, f[3, j] - uy * uy, f[4, j] - ux * uy
+            a1, a2 = 2 * ux * uy + c1, 2 * vxy + c2
+            b1, b2 = ux * ux + uy * uy + c1, vx + vy + c2
+            out[i, j] = (a1 * a2) / (b1 * b2)
+    return out
 
 
 def flip_mean(original_images: np.ndarray, simplified_images: np.ndarray,
@@ -208,15 +324,28 @@ def flip_mean(original_images: np.ndarray, simplified_images: np.ndarray,
     start = time.perf_counter()
     per_view = np.empty(len(indices))
     for k, view in enumerate(indices):
-        # LDR inputs are float images in 0..1, taken as sRGB-encoded.
-        reference = a[view].astype(np.float32) / 255.0
-        test = b[view].astype(np.float32) / 255.0
-        _, mean_error, _ = flip_evaluator.evaluate(
-            reference, test, "LDR", inputsRGB=True, applyMagma=False,
-            computeMeanError=True, parameters={"ppd": FLIP_PPD})
-        per_view[k] = mean_error
+        per_view[k] = _flip_view(a[view], b[view], flip_evaluator)
     seconds = time.perf_counter() - start
     return float(per_view.mean()), per_view, seconds
+
+
+def _flip_view(a: np.ndarray, b: np.ndarray, flip_evaluator) -> float:
+    """FLIP's mean error over one view pair, evaluated on the box where they differ.
+
+    The library's mean is a float32 sum of its error map in row order divided by the
+    pixel count; the map is 0 outside the box, so summing the box's rows in order gives
+    the same float32 sum."""
+    box = _differing_box(a, b, 2 * _FLIP_REACH)
+    if box is None:
+        return 0.0
+    # LDR inputs are float images in 0..1, taken as sRGB-encoded.
+    reference = np.ascontiguousarray(a[box], dtype=np.float32) / 255.0
+    test = np.ascontiguousarray(b[box], dtype=np.float32) / 255.0
+    error_map, _, _ = flip_evaluator.evaluate(
+        reference, test, "LDR", inputsRGB=True, applyMagma=False,
+        computeMeanError=False, parameters={"ppd": FLIP_PPD})
+    total = np.cumsum(np.asarray(error_map, dtype=np.float32).ravel(), dtype=np.float32)[-1]
+    return float(total / np.float32(a.shape[0] * a.shape[1]))
 
 
 def _resolve_views(views, n_views: int) -> list[int]:
@@ -279,7 +408,7 @@ D_RMS = Metric("d_rms", "luminance (0-255)", False,
                _compute_d_rms, needs={"images"})
 SSIM = Metric("ssim", "", True,
               "structural similarity of luminance, mean over the 24 views (Wang et al. 2004)",
-              _compute_ssim, requires={"skimage": "scikit-image>=0.22"}, needs={"images"})
+              _compute_ssim, needs={"images"})
 FLIP = Metric("flip", "", False,
               "FLIP perceptual difference, mean over the FLIP_VIEWS subset of views",
               _compute_flip, requires={"flip_evaluator": "flip-evaluator>=1.2"},

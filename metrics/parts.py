@@ -88,7 +88,8 @@ def parts_lost(original: Mesh, simplified: Mesh) -> dict:
     samples = face_samples(original)
     nearest = nearest_original_faces(original, simplified, samples)
     kept_components = set(np.unique(components[nearest]).tolist())
-    kept_components |= _matched_components(samples, components, simplified)
+    if len(kept_components) <= int(components.max()):  # some not yet found: match them
+        kept_components |= _matched_components(samples, components, simplified)
     lost_c = np.setdiff1d(np.unique(components), np.array(sorted(kept_components), np.int64))
     lost_m = np.setdiff1d(np.unique(materials), np.unique(materials[nearest]))
     areas = face_areas(original.positions, original.faces)

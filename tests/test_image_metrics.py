@@ -136,6 +136,39 @@ def test_ssim_decreases_with_noise():
     assert all(s <= 1.0 for s in scores)
 
 
+def patched_views(seed, boxes, size=96):
+    """A smooth textured view and copies differing from it only inside ``boxes``
+    ((y0, y1, x0, x1) each), one view per box, on a flat grey ground as the renders
+    have it."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:size, 0:size]
+    base = np.full((size, size, 3), 128, dtype=np.uint8)
+    base[16:80, 20:70] = ((xx[16:80, 20:70, None] * 3 + yy[16:80, 20:70, None] * 2
+                           + np.array([0, 40, 80])) % 256).astype(np.uint8)
+    a = np.repeat(base[None], len(boxes), axis=0)
+    b = a.copy()
+    for v, (y0, y1, x0, x1) in enumerate(boxes):
+        b[v, y0:y1, x0:x1] = rng.integers(0, 256, size=(y1 - y0, x1 - x0, 3), dtype=np.uint8)
+    return a, b
+
+
+# Differences in the middle, touching each edge and corner, and everywhere: the cases
+# where the metrics' differing box is clipped by the image or is the whole image.
+PATCHES = [(40, 44, 40, 47), (0, 3, 50, 52), (93, 96, 10, 30), (30, 60, 0, 2),
+           (20, 21, 95, 96), (0, 5, 0, 5), (90, 96, 91, 96), (0, 96, 0, 96), (11, 12, 12, 13)]
+
+
+def test_ssim_on_the_differing_box_is_skimages_whole_view_ssim_bit_for_bit():
+    from skimage.metrics import structural_similarity
+
+    a, b = patched_views(20, PATCHES)
+    _, per_view = ssim_mean(a, b)
+    whole = [structural_similarity(luminance(a[v]), luminance(b[v]), **image._SSIM_SETTINGS)
+             for v in range(len(a))]
+    assert per_view.tolist() == whole
+    assert all(s < 1 for s in whole)
+
+
 def test_ssim_rejects_images_smaller_than_its_window():
     with pytest.raises(ValueError, match="at least 11"):
         ssim_mean(gray(0, (1, 10, 30)), gray(0, (1, 10, 30)))
@@ -163,6 +196,20 @@ def test_flip_is_zero_for_identical_images():
     a = random_views(10, (2, 32, 32, 3))
     f, per_view, seconds = flip_mean(a, a, views="all")
     assert f == 0.0 and per_view.shape == (2,) and np.all(per_view == 0) and seconds >= 0
+
+
+def test_flip_on_the_differing_box_is_the_librarys_whole_view_mean_bit_for_bit():
+    import flip_evaluator
+
+    a, b = patched_views(21, PATCHES)
+    _, per_view, _ = flip_mean(a, b, views="all")
+    whole = [flip_evaluator.evaluate(a[v].astype(np.float32) / 255.0,
+                                     b[v].astype(np.float32) / 255.0, "LDR", inputsRGB=True,
+                                     applyMagma=False, computeMeanError=True,
+                                     parameters={"ppd": image.FLIP_PPD})[1]
+             for v in range(len(a))]
+    assert per_view.tolist() == whole
+    assert all(f > 0 for f in whole)
 
 
 def test_flip_grows_with_the_perturbation():
