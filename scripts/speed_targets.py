@@ -234,7 +234,7 @@ def overhead_table(rounds: int, threads: int | None) -> list[str]:
 
 def evaluation_table(rounds: int, threads: int | None, run_dir: str | None) -> list[str]:
     """Per-stage medians over the jobs of ``run_dir``, or of fresh small runs."""
-    timings = []
+    timings, inside = [], []
     with tempfile.TemporaryDirectory() as tmp:
         dirs = [Path(run_dir)] if run_dir else []
         for r in range(0 if run_dir else rounds):
@@ -248,6 +248,7 @@ def evaluation_table(rounds: int, threads: int | None, run_dir: str | None) -> l
                 record = json.loads(path.read_text())
                 if record.get("timings", {}).get("total") is not None:
                     timings.append(record["timings"])
+                    inside.append(record.get("seconds", {}))
     if not timings:
         return ["### Evaluation", "", "No records with timings.", ""]
     stages = [k for k in timings[0] if k != "total"]
@@ -261,7 +262,21 @@ def evaluation_table(rounds: int, threads: int | None, run_dir: str | None) -> l
                               for s in stages)
              + f" | {outside:.2f} | ≤ {EVALUATION_TARGET:g} s "
              f"{'met' if outside <= EVALUATION_TARGET else 'NOT met'} |", ""]
-    return lines
+    return lines + _inside_table(inside)
+
+
+def _inside_table(inside: list[dict]) -> list[str]:
+    """The evaluation's own stages (the records' ``seconds``): the renders, the shared
+    inputs and each metric, median seconds, the largest first (those above 5 ms)."""
+    names = {k for s in inside for k in s}
+    medians = {k: statistics.median(s.get(k, 0.0) for s in inside) for k in names}
+    shown = sorted((k for k in medians if medians[k] >= 0.005), key=lambda k: -medians[k])
+    if not shown:
+        return []
+    return ["Inside `evaluation`, median seconds (the records' `seconds`):", "",
+            "| " + " | ".join(k.removeprefix("metric:") for k in shown) + " |",
+            "| " + " | ".join("---:" for _ in shown) + " |",
+            "| " + " | ".join(f"{medians[k]:.2f}" for k in shown) + " |", ""]
 
 
 def warmup_table(rounds: int, jobs: int | None) -> list[str]:
