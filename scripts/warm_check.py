@@ -2,9 +2,10 @@
 
     .venv/bin/python scripts/warm_check.py [METHOD,...]   (default: every engine method)
 
-In this fresh process, warms up each method as a job of ``bench run`` does, then counts
-over every numba dispatcher the suite has loaded the signatures read from numba's cache
-and those compiled. After ``bench warmup`` the second count should be 0: the seconds a
+In this fresh process, warms up each method as a job of ``bench run`` does and evaluates
+a tiny result under the protocol (its kernels: views, shading, SSIM), then counts over
+every numba dispatcher the suite has loaded the signatures read from numba's cache and
+those compiled. After ``bench warmup`` the second count should be 0: the seconds a
 job's record gives as ``warm_up`` are then loading, not compiling.
 """
 
@@ -18,7 +19,7 @@ from numba.core.dispatcher import Dispatcher
 
 from bench.core.registry import registry
 from bench.records.suites import ENGINE_METHODS
-from bench.run.warmup import warm_up
+from bench.run.warmup import warm_up, warm_up_evaluation
 
 
 def main() -> None:
@@ -27,6 +28,7 @@ def main() -> None:
     start = time.perf_counter()
     for name in names:
         warm_up(registry("method").load(name))
+    warm_up_evaluation()
     seconds = time.perf_counter() - start
     # each dispatcher once, though every module that imports it holds it too
     dispatchers = {id(value): value for module in list(sys.modules.values())
