@@ -42,7 +42,7 @@ class Quadric(Method):
     # placement guard, parts and materials kept (methods.engine: real assets); 5: the
     # stall rule (a stalled run goes on with a wider fold-over limit; only results that
     # stopped above their target change)
-    version = "5"
+    version = "6"
     summary = "Garland-Heckbert 97/98 quadrics (texture per wedge) on the suite's engine"
     reference = ("Garland & Heckbert, Surface simplification using quadric error metrics, "
                  "SIGGRAPH 1997; ... with color and texture, IEEE Visualization 1998")

@@ -208,6 +208,18 @@ def test_the_stall_rule_takes_the_truck_to_its_target():
     assert _within_box(mesh, widened.mesh)
 
 
+def test_every_stall_phase_runs_until_the_target():
+    """A phase that stalls again hands on to the next, wider one: at 95 degrees the
+    truck gains nothing, at 120 it reaches its target (each phase is allowed the
+    collapses the run has left, counted over the phases before it)."""
+    mesh = quiet_load(asset("milk-truck/CesiumMilkTruck.glb"))
+    for rotations, phases in (((95.0, 120.0), [0, 28]), ((100.0, 110.0, 120.0), [0, 1, 27])):
+        result = simplify_mesh(mesh, 109, Policy(texture_weight=1.0,
+                                                 stall_rotations=rotations))
+        assert result.stats["stall_collapses"] == phases
+        assert result.mesh.n_faces == 108
+
+
 def test_the_stall_rule_changes_nothing_that_reached_its_target():
     from methods.quadric import Quadric
 

@@ -116,12 +116,12 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     stopped, evaluations, mismatches, rejects, log = _loop(arrays, rules, terms, scratch,
                                                            images, prep.kinds)
     stall_collapses = []
+    allowed = rules.max_collapses  # in all: the phases' logs are joined into ``log``
     for degrees in policy.stall_rotations:  # the stall rule (Policy.stall_rotations)
-        if not stopped or _out_of_collapses(log, rules):
+        if not stopped or int(log.count[LOG_COLLAPSES]) >= allowed:
             break
         rules = rules._replace(cos_limit=math.cos(math.radians(degrees)),
-                               max_collapses=rules.max_collapses
-                               - int(log.count[LOG_COLLAPSES]))
+                               max_collapses=allowed - int(log.count[LOG_COLLAPSES]))
         stopped, more, mm, rj, rest = _loop(arrays, rules, terms, scratch, images,
                                             prep.kinds)
         stall_collapses.append(int(rest.count[LOG_COLLAPSES]))
@@ -163,11 +163,6 @@ def _loop(arrays: MeshArrays, rules: Rules, terms, scratch, images, kinds):
     with (views_shared(arrays, rules, scratch, images),
           watching_faces(arrays.falive, rules.target)):
         return _run(arrays, rules, terms, scratch, images, kinds, first)
-
-
-def _out_of_collapses(log, rules: Rules) -> bool:
-    """Whether the loop took all ``rules.max_collapses`` collapses it was allowed."""
-    return int(log.count[LOG_COLLAPSES]) >= rules.max_collapses
 
 
 def _joined(first, then):
