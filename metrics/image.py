@@ -62,7 +62,7 @@ _FLIP_REACH = 10
 # pixels grown by twice the reach (the values inside the box grown by one reach are then
 # computed from exactly the pixels a whole-image evaluation uses), the rest is filled with
 # the exact "no difference", and the mean is taken over the whole view as before. The
-# numbers are the whole-image ones, bit for bit (tests/test_metrics_image.py compares
+# numbers are the whole-image ones, bit for bit (tests/test_image_metrics.py compares
 # them); the protocol's views of a mesh cover about half of each image.
 
 def _differing_box(a: np.ndarray, b: np.ndarray, grow: int):
@@ -82,7 +82,8 @@ def _differing_box(a: np.ndarray, b: np.ndarray, grow: int):
 def _inner(box, grow: int, shape) -> tuple[slice, slice]:
     """``box`` (slices grown by 2·``grow``) shrunk by ``grow`` except where it meets the
     image's edge, as slices into the box itself."""
-    return tuple(slice(0 if s.start == 0 else grow, (s.stop - s.start) - (0 if s.stop == n else grow))
+    return tuple(slice(0 if s.start == 0 else grow,
+                       (s.stop - s.start) - (0 if s.stop == n else grow))
                  for s, n in zip(box, shape))
 
 
@@ -174,9 +175,8 @@ def ssim_mean(original_images: np.ndarray, simplified_images: np.ndarray
     (``gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=255``):
     an 11×11 Gaussian window of sigma 1.5, population covariances, data range 255, and
     K1 = 0.01, K2 = 0.03. SSIM of each view is the mean of its SSIM map away from a
-    5-pixel border. The numbers are skimage's bit for bit; the map is computed here, on
-    the box where the views differ only (it is exactly 1 elsewhere), about four times
-    faster.
+    5-pixel border. The numbers are skimage's bit for bit; the map is computed here,
+    and only on the box where the views differ (it is exactly 1 elsewhere).
 
     Parameters
     ----------
@@ -243,9 +243,10 @@ def _ssim_map(x, y, w, c1, c2):  # pragma: no cover - compiled
     weights ``w`` and population covariances, with the same arithmetic in the same
     order, so the values are skimage's bit for bit (tests/test_image_metrics.py checks).
 
-    The five local moments are filtered separably, rows then columns, each tap pair
-    summed first as scipy.ndimage's symmetric ``correlate1d`` does: x₀·w₀, then
-    (x₋ₖ + xₖ)·wₖ for k = r … 1. One output row at a time, so memory is two rows."""
+    The five local moments are filtered separably in scipy.ndimage's order, down the
+    columns (axis 0) and then along the rows, each tap pair summed first as its
+    symmetric ``correlate1d`` does: x₀·w₀, then (x₋ₖ + xₖ)·wₖ for k = r … 1. One output
+    row at a time, so the workspace is two rows of the five moments."""
     r = (len(w) - 1) // 2
     rows, cols = x.shape[0] - 2 * r, x.shape[1] - 2 * r
     out = np.empty((rows, cols))
