@@ -79,14 +79,6 @@ def _differing_box(a: np.ndarray, b: np.ndarray, grow: int):
             slice(max(0, cols[0] - grow), min(w, cols[-1] + 1 + grow)))
 
 
-def _inner(box, grow: int, shape) -> tuple[slice, slice]:
-    """``box`` (slices grown by 2·``grow``) shrunk by ``grow`` except where it meets the
-    image's edge, as slices into the box itself."""
-    return tuple(slice(0 if s.start == 0 else grow,
-                       (s.stop - s.start) - (0 if s.stop == n else grow))
-                 for s, n in zip(box, shape))
-
-
 # -- the view subset for FLIP ------------------------------------------------------------
 
 def _protocol_directions() -> np.ndarray:
@@ -207,19 +199,19 @@ def ssim_mean(original_images: np.ndarray, simplified_images: np.ndarray
 def _ssim_view(a: np.ndarray, b: np.ndarray) -> float:
     """The mean SSIM of one view pair, from :func:`_ssim_map` on the box where they
     differ; the rest of the map is exactly 1."""
-    box = _differing_box(a, b, 2 * _SSIM_RADIUS)
+    r = _SSIM_RADIUS
+    box = _differing_box(a, b, 2 * r)
     if box is None:
         return 1.0
-    r = _SSIM_RADIUS
-    # Where the box meets the image's edge, the window reads the image mirrored about it
-    # (scipy's "reflect", numpy's "symmetric"); elsewhere the box has the pixels itself.
-    pads = [(r if s.start == 0 else 0, r if s.stop == n else 0)
-            for s, n in zip(box, a.shape[:2])]
-    x = np.pad(luminance(a[box]), pads, mode="symmetric")
-    y = np.pad(luminance(b[box]), pads, mode="symmetric")
-    inner = _inner(box, r, a.shape[:2])
+    # The map covers the box less r on each side, where the window has the box's own
+    # pixels; where the box meets the image's edge, the window reads the image mirrored
+    # about it (scipy's "reflect", numpy's "symmetric") and the map reaches the edge.
+    edges = [(s.start == 0, s.stop == n) for s, n in zip(box, a.shape[:2])]
+    x = np.pad(luminance(a[box]), [(r * lo, r * hi) for lo, hi in edges], mode="symmetric")
+    y = np.pad(luminance(b[box]), [(r * lo, r * hi) for lo, hi in edges], mode="symmetric")
     s_map = np.ones(a.shape[:2])
-    s_map[tuple(slice(s.start + i.start, s.start + i.stop) for s, i in zip(box, inner))] = \
+    s_map[tuple(slice(s.start + r * (not lo), s.stop - r * (not hi))
+                for s, (lo, hi) in zip(box, edges))] = \
         _ssim_map(x, y, _SSIM_WEIGHTS, _SSIM_C1, _SSIM_C2)
     return float(s_map[r:-r, r:-r].mean(dtype=np.float64))  # the border has no window
 
