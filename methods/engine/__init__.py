@@ -16,7 +16,7 @@ Every method of the suite that removes edges runs on this engine. The pipeline, 
                                 that take views of each evaluation and commit
     _run (numba, loop.py)       _collect_candidates; then _pop_current, _check_candidate
                                 (or _block), _take (log, collapse, images),
-                                _requeue_neighbours / _requeue_apexes
+                                _requeue (the kept vertex's and the apexes' edges)
     _extract, _statistics       render vertices again from the surviving wedges; counts
     _log_in_input_numbering     the collapse log in the input's ids and units
 

@@ -7,7 +7,7 @@ and CGAL's ``Edge_collapse::run``::
       _check_candidate      the validity rules (methods.engine.topology._check)
       _block                a rejected edge waits for an endpoint to change
       _take                 log, collapse, bring the images up to date
-      _requeue_neighbours   stamp the neighbourhood, release blocked edges, queue the
+      _requeue              stamp the neighbourhood, release blocked edges, queue the
                             kept vertex's edges (and the removed faces' apexes')
 
 Every helper takes a few named structures of :mod:`methods.engine.state`.
@@ -112,22 +112,20 @@ def _pop_current(heap, mesh, rules, terms, scratch, images, queue):
         cost, a, b, sa, sb, px, py, pz, keep = heapq.heappop(heap)
         if not mesh.valive[a] or not mesh.valive[b]:
             continue
-        if sa != stamp[a] or sb != stamp[b] or keep == -1:  # stale, or queued lazily
-            if sa != -1 and (sa < pushed_at[a] or sb < pushed_at[b]):
-                continue  # superseded: a newer entry for this edge was pushed since
-            # re-cost lazily and push back
-            if _edge_faces(a, b, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
-                           scratch.efaces) == 0:
-                continue
-            cost, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
-            _push(heap, cost, a, b, stamp[a], stamp[b], p, keep)
-            _remember(queue, rules, a, b, mesh.P.shape[0], cost)
-            continue
+        stale = sa != stamp[a] or sb != stamp[b] or keep == -1  # or queued lazily
+        if stale and sa != -1 and (sa < pushed_at[a] or sb < pushed_at[b]):
+            continue  # superseded: a newer entry for this edge was pushed since
         if _edge_faces(a, b, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
                        scratch.efaces) == 0:
             continue
-        if rules.verify:  # re-cost: the stored cost and placement must be current
-            fresh, keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
+        if stale or rules.verify:  # one call site: each one is a copy of the costing
+            fresh, fresh_keep = _cost(a, b, mesh, rules, terms, scratch, images, queue)
+            if stale:  # re-cost lazily and push back
+                _push(heap, fresh, a, b, stamp[a], stamp[b], p, fresh_keep)
+                _remember(queue, rules, a, b, mesh.P.shape[0], fresh)
+                continue
+            # verify: the stored cost and placement must be current
+            keep = fresh_keep
             if abs(fresh - cost) > 1e-9 * max(1.0, abs(cost)):
                 queue.tally[MISMATCHES] += 1
         else:  # current stamps: the queued cost and placement are those of now
@@ -283,11 +281,20 @@ def _release_blocked(heap, blocked, w, cost, p, valive):
 
 
 @njit(cache=True)
-def _requeue_neighbours(heap, u, v, cost, fresh, mesh, rules, terms, scratch, images,
-                        queue, blocked):
+def _requeue(heap, u, v, removed, cost, fresh, mesh, rules, terms, scratch, images, queue,
+             blocked, log):
     """After collapsing u into v: stamp v, and its neighbours when costs depend on the
     triangles around an edge (a quadric cost of (w, x) depends only on w and x, which
-    did not change); release the neighbours' blocked edges; queue v's edges afresh."""
+    did not change); release the neighbours' blocked edges; queue v's edges afresh.
+
+    With the seam rule and pure quadric costs, the apexes of the removed faces get fresh
+    entries for their edges too: they lost a face, which can change whether they are
+    seam vertices (and so the seam rule's verdict on their edges). (With neighbourhood
+    costs they were stamped already and are re-costed lazily.)
+
+    The eager re-costing is one loop over v and the apexes, so :func:`_evaluate` has a
+    single call site here: each call site is a copy of the costing for numba and LLVM
+    to compile."""
     weights, stamp, p, nbr_v = rules.weights, queue.stamp, scratch.p, scratch.nbr_v
     rendered = weights.image != 0.0 or weights.entropy != 0.0  # image and/or entropy
     neighbourhood_cost = weights.memoryless != 0.0 or weights.canny != 0.0 or rendered
@@ -300,11 +307,11 @@ def _requeue_neighbours(heap, u, v, cost, fresh, mesh, rules, terms, scratch, im
         if neighbourhood_cost and w != v:
             stamp[w] += 1
         _release_blocked(heap, blocked, w, cost, p, mesh.valive)
-    for i in range(m):
-        w = nbr_v[i]
-        if w == v:
-            continue
-        if rendered:  # the edge's last key, re-costed when it reaches the front
+    if rendered:  # the edges' last keys, re-costed when they reach the front
+        for i in range(m):
+            w = nbr_v[i]
+            if w == v:
+                continue
             key = fresh
             kv, ku = min(v, w) * nv + max(v, w), min(u, w) * nv + max(u, w)
             if kv in queue.last_key:
@@ -312,34 +319,26 @@ def _requeue_neighbours(heap, u, v, cost, fresh, mesh, rules, terms, scratch, im
             elif ku in queue.last_key:
                 key = queue.last_key[ku]
             _push(heap, key, v, w, stamp[v], stamp[w], p, -1)
-            continue
-        c2, k2 = _cost(v, w, mesh, rules, terms, scratch, images, queue)
-        _push(heap, c2, v, w, stamp[v], stamp[w], p, k2)
-    queue.pushed_at[v] = stamp[v]
-
-
-@njit(cache=True)
-def _requeue_apexes(heap, u, v, removed, mesh, rules, terms, scratch, images, queue, log):
-    """The apexes of the removed faces lost a face, which can change whether they are
-    seam vertices (and so the seam rule's verdict on their edges): give their edges
-    fresh entries. (With neighbourhood costs they were stamped already and are
-    re-costed lazily, so only the seam rule with pure quadric costs needs this.)"""
-    stamp, nbr_u = queue.stamp, scratch.nbr_u
+        queue.pushed_at[v] = stamp[v]
+        return
+    apexes = min(removed, 2) if rules.seam_rule and not neighbourhood_cost else 0
     n = log.count[LOG_COLLAPSES]
-    for i in range(min(removed, 2)):
-        x = log.faces[n - 1, i]
-        x = _third(mesh.F, x, u, v)
-        if x == -1 or not mesh.valive[x]:
-            continue
-        stamp[x] += 1
-        mx = _neighbors(x, mesh.F, mesh.vhead, mesh.cnext, mesh.falive, scratch.mark,
-                        scratch.tick, nbr_u)
-        for i2 in range(mx):
-            y = nbr_u[i2]
+    for k in range(1 + apexes):
+        x, nbr, mx = v, nbr_v, m
+        if k > 0:  # the apex of the (k-1)-th removed face
+            x = _third(mesh.F, log.faces[n - 1, k - 1], u, v)
+            if x == -1 or not mesh.valive[x]:
+                continue
+            stamp[x] += 1
+            nbr = scratch.nbr_u
+            mx = _neighbors(x, mesh.F, mesh.vhead, mesh.cnext, mesh.falive, scratch.mark,
+                            scratch.tick, nbr)
+        for i in range(mx):
+            y = nbr[i]
             if y == x:
                 continue
-            c2, k2 = _cost(x, y, mesh, rules, terms, scratch, images, queue)
-            _push(heap, c2, x, y, stamp[x], stamp[y], scratch.p, k2)
+            c, kept = _cost(x, y, mesh, rules, terms, scratch, images, queue)
+            _push(heap, c, x, y, stamp[x], stamp[y], scratch.p, kept)
         queue.pushed_at[x] = stamp[x]
 
 
@@ -431,13 +430,8 @@ def _run(mesh, rules, terms, scratch, images, kinds, first):
         faces -= removed
         mesh.vboundary[v] = mesh.vboundary[v] or mesh.vboundary[u]  # stays a boundary
         # Stamp and re-queue: the costs around v changed.
-        _requeue_neighbours(heap, u, v, cost, fresh, mesh, rules, terms, scratch, images,
-                            queue, blocked)
-        w = rules.weights
-        if rules.seam_rule and not (w.memoryless != 0.0 or w.canny != 0.0
-                                    or w.image != 0.0 or w.entropy != 0.0):
-            _requeue_apexes(heap, u, v, removed, mesh, rules, terms, scratch, images, queue,
-                            log)
+        _requeue(heap, u, v, removed, cost, fresh, mesh, rules, terms, scratch, images, queue,
+                 blocked, log)
     if faces <= rules.target:
         stopped = 0
     images.img.stats[STAT_RUN_CYCLES] += cycles() - run_start
