@@ -16,8 +16,10 @@ compile the same kernels.
 
 from __future__ import annotations
 
+import gc
 import time
 import warnings
+from contextlib import contextmanager
 from functools import cache
 
 import numpy as np
@@ -54,6 +56,25 @@ def tiny_meshes() -> tuple[Mesh, Mesh]:
     return plain, textured
 
 
+#: Python's cyclic collector while compiling: a collection of the young objects every
+#: 100,000 allocations instead of 700. numba's compiler makes millions of small objects
+#: that live until a function is compiled, and at the default thresholds the collector
+#: took about a tenth of a cold compile (a profile of quadric's kernels); with these,
+#: the compile took 9 % less wall time at the same peak memory.
+COMPILE_GC_THRESHOLDS = (100_000, 50, 100)
+
+
+@contextmanager
+def fewer_collections():
+    """Python's cyclic collector at :data:`COMPILE_GC_THRESHOLDS` for the block."""
+    before = gc.get_threshold()
+    gc.set_threshold(*COMPILE_GC_THRESHOLDS)
+    try:
+        yield
+    finally:
+        gc.set_threshold(*before)
+
+
 def warm_up(method_cls, params=None, ctx=None) -> float:
     """Run ``method_cls(params)`` on both tiny meshes once per process and return the
     seconds it took (0 when this process already warmed it up, or when the method says
@@ -68,7 +89,7 @@ def warm_up(method_cls, params=None, ctx=None) -> float:
     for mesh in tiny_meshes():
         if getattr(method_cls, "needs_uv", False) and mesh.uv is None:
             continue
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), fewer_collections():
             warnings.simplefilter("ignore")
             try:
                 run_method(method_cls(params), mesh, mesh.n_faces // 2,
@@ -90,7 +111,7 @@ def warm_up_evaluation() -> float:
 
     start = time.perf_counter()
     plain, _ = tiny_meshes()
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), fewer_collections():
         warnings.simplefilter("ignore")
         evaluate(plain, plain.keep_faces(plain.faces[::2]),
                  Protocol(resolution=64, hausdorff_samples=1000))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 
+import numba
 import numpy as np
 
 from bench.core.mesh import Mesh
@@ -160,9 +161,13 @@ def _loop(arrays: MeshArrays, rules: Rules, terms, scratch, images, kinds):
     """Every live edge costed (:func:`first_costs`), then the loop (:func:`_run`), with
     the progress bar and the views shared among the job's threads."""
     first = first_costs(arrays, rules, terms, scratch, images)
+    args = (arrays, rules, terms, scratch, images, kinds, first)
+    # Compiled (or read from numba's cache) before the helpers start: they wait for
+    # work spinning on a core, which a compile of minutes would waste.
+    _run.compile(tuple(numba.typeof(a) for a in args))
     with (views_shared(arrays, rules, scratch, images),
           watching_faces(arrays.falive, rules.target)):
-        return _run(arrays, rules, terms, scratch, images, kinds, first)
+        return _run(*args)
 
 
 def _joined(first, then):
