@@ -9,9 +9,9 @@ own. A run's timings should hold none of that, so each worker warms a method up 
 ``scripts/setup.sh``) fills numba's cache once, so the first real run starts warm:
 :func:`warm_up_all` runs every method once and evaluates a tiny result (the protocol's
 own kernels), in several processes at a time. Methods declare the families of kernels
-they run (:attr:`bench.core.method.Method.kernels`); the first method of a family compiles
-it alone, and the others that need it start once it is cached, so no two processes
-compile the same kernels.
+they run (:attr:`bench.core.method.Method.kernels`); one method of a family compiles it
+(:func:`schedule` says which), and the others that need it start once it is cached, so
+no two processes compile the same kernels.
 """
 
 from __future__ import annotations
@@ -132,21 +132,23 @@ def _warm_task(name: str) -> tuple[str, float]:
 def schedule(kernels: dict[str, tuple[str, ...]]) -> list[tuple[str, set[str]]]:
     """The order of :func:`warm_up_all`'s tasks, each with the tasks it waits for.
 
-    ``kernels`` maps each task to the kernel families it needs. The first task of a
-    family (the one needing most families, then by name) builds it; a later task waits
-    for the builder of every family it needs. Builders come first, so the families
-    compile side by side."""
-    order = sorted(kernels, key=lambda n: (-len(kernels[n]), n))
+    ``kernels`` maps each task to the kernel families it needs. Each family is built by
+    the task that needs fewest families (then by name), so that a builder compiles
+    little besides its own family; a task waits for the builder of every family it
+    needs. The engine's family is the long one (minutes cold) and every other family's
+    kernels run with it, so its builder needs it alone and starts first: the other
+    families' builders then compile theirs in both processes at once as soon as it is
+    cached, rather than one after another in the process that built the engine."""
+    order = sorted(kernels, key=lambda n: (len(kernels[n]), n))
     builder: dict[str, str] = {}
     for name in order:
         for family in kernels[name]:
             builder.setdefault(family, name)
-    tasks = []
-    for name in order:
-        waits = {builder[f] for f in kernels[name]} - {name}
-        tasks.append((name, waits))
-    first = [t for t in tasks if not t[1]]
-    return first + [t for t in tasks if t[1]]
+    builds = set(builder.values())
+    tasks = [(name, {builder[f] for f in kernels[name]} - {name}) for name in order]
+    ready = [t for t in tasks if not t[1]]
+    return ([t for t in ready if t[0] in builds] + [t for t in ready if t[0] not in builds]
+            + [t for t in tasks if t[1]])
 
 
 def warm_up_all(names: list[str], jobs: int = 1, on_done=lambda name, seconds: None
