@@ -207,8 +207,9 @@ def _ssim_view(a: np.ndarray, b: np.ndarray) -> float:
     # pixels; where the box meets the image's edge, the window reads the image mirrored
     # about it (scipy's "reflect", numpy's "symmetric") and the map reaches the edge.
     edges = [(s.start == 0, s.stop == n) for s, n in zip(box, a.shape[:2])]
-    x = np.pad(luminance(a[box]), [(r * lo, r * hi) for lo, hi in edges], mode="symmetric")
-    y = np.pad(luminance(b[box]), [(r * lo, r * hi) for lo, hi in edges], mode="symmetric")
+    pads = [(r * lo, r * hi) for lo, hi in edges]
+    x = np.pad(luminance(a[box]), pads, mode="symmetric")
+    y = np.pad(luminance(b[box]), pads, mode="symmetric")
     s_map = np.ones(a.shape[:2])
     s_map[tuple(slice(s.start + r * (not lo), s.stop - r * (not hi))
                 for s, (lo, hi) in zip(box, edges))] = \

@@ -61,7 +61,7 @@ def tiny_meshes() -> tuple[Mesh, Mesh]:
 #: that live until a function is compiled, and at the default thresholds the collector
 #: took about a tenth of a cold compile (a profile of quadric's kernels). With these the
 #: same compile took 9 % and 16 % less wall time (two measurements) and its peak memory
-#: grew from 1.1 to 1.4 GB; with the collector off, no less time and 2.8 GB.
+#: grew from 1.1 to 1.4 GB; with the collector off, about the same time and 2.8 GB.
 COMPILE_GC_THRESHOLDS = (100_000, 50, 100)
 
 
