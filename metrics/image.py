@@ -28,6 +28,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
+import numba
 import numpy as np
 from numba import njit
 
@@ -317,10 +318,23 @@ def flip_mean(original_images: np.ndarray, simplified_images: np.ndarray,
 
     start = time.perf_counter()
     per_view = np.empty(len(indices))
-    for k, view in enumerate(indices):
-        per_view[k] = _flip_view(a[view], b[view], flip_evaluator)
+    with _flip_threads():
+        for k, view in enumerate(indices):
+            per_view[k] = _flip_view(a[view], b[view], flip_evaluator)
     seconds = time.perf_counter() - start
     return float(per_view.mean()), per_view, seconds
+
+
+def _flip_threads():
+    """FLIP's OpenMP threads limited to the threads numba's parallel kernels have in this
+    process: a job process of ``bench run --jobs 2`` has one, so its FLIP runs on one
+    too. Left to itself, OpenMP starts a thread per core in every job process, and with
+    two jobs on two cores its threads spin waiting at each of FLIP's barriers on the
+    core the other job needs: FLIP took twice as long. The error map, and so the value,
+    does not depend on the number of threads."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=numba.get_num_threads(), user_api="openmp")
 
 
 def _flip_view(a: np.ndarray, b: np.ndarray, flip_evaluator) -> float:
