@@ -64,3 +64,77 @@ def test_every_job_is_taken_once():
         running = {(job.model, job.method)} if len(taken) % 2 else set()
         last = (job.model, job.method)
     assert sorted(_labels(taken)) == sorted(_labels(jobs)) and len(taken) == len(jobs)
+
+
+# -- kernel families: one process compiles a family, the others wait or run other jobs --
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from bench.run.runner import Families  # noqa: E402
+
+KERNELS = {"qslim": (), "memoryless": ("engine",), "image-driven": ("engine", "imaging"),
+           "entropy-twin": ("engine", "imaging", "canny")}
+
+
+def test_the_engines_builder_starts_first_and_the_baselines_run_beside_it():
+    jobs = _jobs(("a", "qslim", 9), ("a", "image-driven", 9), ("a", "memoryless", 9),
+                 ("b", "memoryless", 9), ("b", "qslim", 9))
+    pending, families = deque(jobs), Families(KERNELS)
+    assert next_job(pending, set(), None, families, 0) == jobs[2]  # builds the engine
+    # the other process: image-driven needs the engine, memoryless b the method's own
+    # first warm-up; qslim needs neither
+    assert next_job(pending, {("a", "memoryless")}, None, families, 1) == jobs[0]
+    assert next_job(pending, {("a", "memoryless")}, None, families, 1) is None  # qslim's own
+    families.settle(1, built=True)  # qslim a left its set-up
+    assert next_job(pending, {("a", "memoryless")}, None, families, 1) == jobs[4]
+    families.settle(1, built=True)
+    assert next_job(pending, set(), None, families, 1) is None  # all wait for the engine
+    families.settle(0, built=True)
+    assert next_job(pending, set(), ("b", "qslim"), families, 1) == jobs[1]  # builds imaging
+    assert next_job(pending, {("a", "image-driven")}, None, families, 0) == jobs[3]
+    assert not pending
+
+
+def test_a_family_whose_job_ended_in_its_set_up_is_claimed_again():
+    jobs = _jobs(("a", "memoryless", 9), ("b", "memoryless", 9))
+    pending, families = deque(jobs), Families(KERNELS)
+    assert next_job(pending, set(), None, families, 0) == jobs[0]
+    assert next_job(pending, set(), None, families, 1) is None
+    families.settle(0, built=False)  # e.g. skipped, or its process died while compiling
+    assert next_job(pending, set(), None, families, 1) == jobs[1]
+    assert families.claims == {("kernels", "engine"): 1, ("method", "memoryless"): 1}
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from("ab"), st.sampled_from(sorted(KERNELS)),
+                          st.integers(1, 3)), min_size=1, max_size=12, unique=True),
+       st.lists(st.tuples(st.integers(0, 2), st.booleans()), max_size=60))
+def test_no_family_is_compiled_by_two_processes_and_every_job_runs_once(specs, events):
+    """Three processes take jobs and leave their set-ups (built or not) in an arbitrary
+    order: no family is ever claimed by two, a job starts only when none of its unbuilt
+    families is claimed by another process, and every job runs exactly once."""
+    jobs = _jobs(*specs)
+    pending, families = deque(jobs), Families(KERNELS)
+    busy: dict[int, object] = {}
+    taken = []
+    events = list(events) + [(p, True) for _ in range(len(jobs) + 1) for p in range(3)]
+    for owner, built in events:
+        if owner in busy:  # its job leaves its set-up (and, here, ends)
+            del busy[owner]
+            families.settle(owner, built)
+            continue
+        if not pending:
+            continue
+        job = next_job(pending, set(), None, families, owner)
+        if job is None:
+            assert busy, "a job waits though no process compiles anything"
+            continue
+        others = {f for f, o in families.claims.items() if o != owner}
+        assert not others & set(families.kernels[job.method])
+        busy[owner] = job
+        taken.append(job)
+        claimed = list(families.claims)
+        assert len(claimed) == len(set(claimed))
+        assert not families.built & set(claimed)
+    assert sorted(_labels(taken)) == sorted(_labels(jobs))

@@ -241,7 +241,7 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     from bench.catalog import resolve_model
     from bench.core.method import parse_params, run_method
     from bench.core.registry import registry
-    from bench.run.warmup import warm_up
+    from bench.run.warmup import warm_up, warm_up_evaluation_once
     from metrics.protocol import original_images
 
     record = result.record
@@ -269,8 +269,9 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
     ctx = {"shading": job.protocol.shading, "specular": job.protocol.specular,
            # work a method may share between the run's jobs (e.g. perceptual-mt's MT)
            "cache_dir": str(cache_dir)}
-    # numba compilation or cache loading is not method time: warm up first, apart
-    compile_seconds = warm_up(method_cls, params, ctx)
+    # numba compilation or cache loading is not method time: warm up first, apart (the
+    # evaluation's kernels too, once per process, so that its timings hold none of it)
+    compile_seconds = warm_up(method_cls, params, ctx) + warm_up_evaluation_once()
     clock.lap("warm_up")
     phase("method")
     simplified = run_method(method_cls(params), mesh, job.target_faces, ctx)

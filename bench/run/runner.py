@@ -38,8 +38,8 @@ from bench.run.jobs import (
     store_result,
 )
 
-__all__ = ["EXECUTORS", "SHEET_VIEWS", "Job", "JobResult", "LocalPool", "environment",
-           "execute", "next_job", "plan", "remaining", "run_job"]
+__all__ = ["EXECUTORS", "SHEET_VIEWS", "Families", "Job", "JobResult", "LocalPool",
+           "environment", "execute", "next_job", "plan", "remaining", "run_job"]
 
 #: The executors ``bench run --executor`` offers.
 EXECUTORS = ("local", "dask")
@@ -133,21 +133,92 @@ def _group(job: Job) -> tuple[str, str]:
     return job.model, job.method
 
 
-def next_job(pending: deque, running: set, last: tuple[str, str] | None) -> Job:
-    """Take from ``pending`` the job a free process should run next: one of the group
+class Families:
+    """The kernel families (:attr:`bench.core.method.Method.kernels`) a run's jobs warm
+    up, so that two job processes never compile the same numba kernels side by side.
+
+    A job's *families* are its method's kernel families and the method itself (whose
+    own kernels its first job compiles). The first job to need a family that is not yet
+    known to be built *claims* it: that job's warm-up compiles it on a cold numba cache,
+    or reads it from the cache in a second on a warm one. Jobs needing a claimed family
+    wait; the family is *built* once its job has left its set-up (the warm-up), and is
+    released unbuilt if the job ended there (skipped, failed or timed out), for the next
+    job to claim. The run knows nothing of the cache at its start, so this costs a warm
+    run a second or two of a process's waiting at most, and spares a cold one from
+    compiling a family in both processes at once: ``bench run`` on a cold cache then
+    compiles about as fast as ``bench warmup`` does, with the baselines' jobs, which
+    need no family, running meanwhile on the other process.
+    """
+
+    def __init__(self, kernels: dict[str, tuple[str, ...]]):
+        self.kernels = {method: tuple(("kernels", f) for f in families) + (("method", method),)
+                        for method, families in kernels.items()}
+        self.built: set[tuple[str, str]] = set()
+        self.claims: dict[tuple[str, str], object] = {}
+
+    def _unbuilt(self, job: Job) -> list[tuple[str, str]]:
+        return [f for f in self.kernels.get(job.method, ()) if f not in self.built]
+
+    def waits(self, job: Job) -> bool:
+        """Whether ``job`` needs a family that another job is building."""
+        return any(f in self.claims for f in self._unbuilt(job))
+
+    def builds_kernels(self, job: Job) -> bool:
+        """Whether ``job`` would be the first to build one of the kernel families."""
+        return any(f[0] == "kernels" and f not in self.claims for f in self._unbuilt(job))
+
+    def claim(self, job: Job, owner) -> None:
+        for family in self._unbuilt(job):
+            self.claims.setdefault(family, owner)
+
+    def settle(self, owner, built: bool) -> None:
+        """``owner``'s job left its set-up (``built``) or ended in it (not built)."""
+        for family in [f for f, o in self.claims.items() if o == owner]:
+            del self.claims[family]
+            if built:
+                self.built.add(family)
+
+
+def next_job(pending: deque, running: set, last: tuple[str, str] | None,
+             families: Families | None = None, owner=None) -> Job | None:
+    """Take from ``pending`` the job a free process should run next, or None if every
+    waiting job needs kernels another process is compiling (:class:`Families`; the
+    process then waits). First a job that is the first to build a kernel family,
+    needing the fewest families (the engine's, the long compile, starts at once, and
+    the families built on it as soon as it is built); then one of the group
     (:func:`_group`) this process ran last, so what it cached in memory is reused; else
     the first whose group no other process is running, so two processes do not build
     the same shared work side by side; else the first (never idle while jobs wait)."""
-    free = [job for job in pending if _group(job) not in running]
-    job = next((j for j in free if _group(j) == last), free[0] if free else pending[0])
+    ready = [job for job in pending if families is None or not families.waits(job)]
+    if not ready:
+        return None
+    builders = [job for job in ready if families is not None and families.builds_kernels(job)]
+    if builders:
+        job = min(builders, key=lambda j: len(families.kernels[j.method]))  # the first of equals
+    else:
+        free = [job for job in ready if _group(job) not in running]
+        job = next((j for j in free if _group(j) == last), free[0] if free else ready[0])
     pending.remove(job)
+    if families is not None:
+        families.claim(job, owner)
     return job
+
+
+def _families(jobs: list[Job]) -> Families:
+    """The :class:`Families` of ``jobs``' methods (from the method registry)."""
+    from bench.core.registry import registry
+
+    methods = registry("method")
+    return Families({name: tuple(getattr(methods.load(name), "kernels", ()))
+                     for name in dict.fromkeys(job.method for job in jobs)})
 
 
 class LocalPool:
     """``workers`` job processes on this machine, each given a job when free
-    (:func:`next_job`: the plan's order, except that a process keeps to its last
-    model and method where it can and two processes avoid running the same pair).
+    (:func:`next_job`: the plan's order, except that the first job to need a kernel
+    family not yet built goes first, a job waits while another process compiles a
+    family it needs (:class:`Families`), a process keeps to its last model and method
+    where it can, and two processes avoid running the same pair).
 
     A process that dies or runs past the timeout is killed and replaced (lazily, when
     there is a job for it); its job gets a failed record. ``cache_dir`` is the run
@@ -175,27 +246,36 @@ class LocalPool:
 
     def run(self, jobs: list[Job], timeout: float, done: Callable[[JobResult], None]) -> None:
         pending = deque(jobs)
+        families = _families(jobs)
         self.slots = [None] * min(self.workers, len(jobs))
         last: list[tuple[str, str] | None] = [None] * len(self.slots)
         while pending or any(p is not None and p.job is not None for p in self.slots):
             for i, proc in enumerate(self.slots):
                 if pending and (proc is None or proc.job is None):
-                    if proc is None or not proc.usable:  # first job, or replaced
-                        self.slots[i] = proc = JobProcess()
                     running = {_group(p.job) for p in self.slots
                                if p is not None and p.job is not None}
-                    job = next_job(pending, running, last[i])
+                    job = next_job(pending, running, last[i], families, i)
+                    if job is None:  # it waits for kernels another process compiles
+                        continue
+                    if proc is None or not proc.usable:  # first job, or replaced
+                        self.slots[i] = proc = JobProcess()
                     last[i] = _group(job)
                     proc.submit(job, self.cache_dir, self._worker(i))
-            busy = [p for p in self.slots if p is not None and p.job is not None]
-            ready = wait([p.conn for p in busy], timeout=0.5)
-            for proc in busy:
+            busy = [(i, p) for i, p in enumerate(self.slots) if p is not None and p.job is not None]
+            ready = wait([p.conn for _, p in busy], timeout=0.5)
+            for i, proc in busy:
                 if proc.conn in ready:
                     result = proc.collect()  # None: the job only reported a phase
-                    if result is not None:
-                        done(result)
+                    if result is None:
+                        if proc.phase != "setup":
+                            families.settle(i, built=True)
+                        continue
                 elif proc.expired(timeout):
-                    done(proc.timed_out(timeout))
+                    result = proc.timed_out(timeout)
+                else:
+                    continue
+                families.settle(i, built=proc.phase != "setup")
+                done(result)
 
     def _worker(self, slot: int) -> dict:
         import platform

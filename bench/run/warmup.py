@@ -26,7 +26,8 @@ import numpy as np
 
 from bench.core.mesh import Mesh
 
-__all__ = ["tiny_meshes", "warm_up", "warm_up_all", "schedule", "EVALUATION", "WARM"]
+__all__ = ["tiny_meshes", "warm_up", "warm_up_all", "warm_up_evaluation",
+           "warm_up_evaluation_once", "schedule", "EVALUATION", "WARM"]
 
 #: The methods (by name and parameters) this process has warmed up.
 WARM: set = set()
@@ -117,6 +118,15 @@ def warm_up_evaluation() -> float:
         evaluate(plain, plain.keep_faces(plain.faces[::2]),
                  Protocol(resolution=64, hausdorff_samples=1000))
     return time.perf_counter() - start
+
+
+def warm_up_evaluation_once() -> float:
+    """:func:`warm_up_evaluation` in a process that has not yet run it; else 0."""
+    if EVALUATION in WARM:
+        return 0.0
+    seconds = warm_up_evaluation()
+    WARM.add(EVALUATION)
+    return seconds
 
 
 def _warm_task(name: str) -> tuple[str, float]:
