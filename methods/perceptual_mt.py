@@ -142,6 +142,7 @@ class PerceptualMT(Method):
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "
                  "Simplification of Lit, Textured Meshes, I3D 2003")
     view_dependent = True
+    shares_work = True  # the MT and its bounds, built once per model (methods.mt.cache)
     requires = {"numba": "numba>=0.59"}
 
     @dataclass

@@ -86,11 +86,11 @@ def test_the_engines_builder_starts_first_and_the_baselines_run_beside_it():
     # first warm-up; qslim needs neither
     assert next_job(pending, {("a", "memoryless")}, None, families, 1) == jobs[0]
     assert next_job(pending, {("a", "memoryless")}, None, families, 1) is None  # qslim's own
-    families.settle(1, built=True)  # qslim a left its set-up
+    families.left_setup(1)  # qslim a left its set-up
     assert next_job(pending, {("a", "memoryless")}, None, families, 1) == jobs[4]
-    families.settle(1, built=True)
+    families.ended(1, left_setup=True)
     assert next_job(pending, set(), None, families, 1) is None  # all wait for the engine
-    families.settle(0, built=True)
+    families.left_setup(0)
     assert next_job(pending, set(), ("b", "qslim"), families, 1) == jobs[1]  # builds imaging
     assert next_job(pending, {("a", "image-driven")}, None, families, 0) == jobs[3]
     assert not pending
@@ -101,9 +101,25 @@ def test_a_family_whose_job_ended_in_its_set_up_is_claimed_again():
     pending, families = deque(jobs), Families(KERNELS)
     assert next_job(pending, set(), None, families, 0) == jobs[0]
     assert next_job(pending, set(), None, families, 1) is None
-    families.settle(0, built=False)  # e.g. skipped, or its process died while compiling
+    families.ended(0, left_setup=False)  # e.g. skipped, or its process died compiling
     assert next_job(pending, set(), None, families, 1) == jobs[1]
     assert families.claims == {("kernels", "engine"): 1, ("method", "memoryless"): 1}
+
+
+def test_a_models_shared_work_is_built_by_one_job_before_the_others_start():
+    """perceptual-mt's two budgets of a model: the second waits for the first to end
+    (its MT is then in the run's cache), not merely to leave its set-up."""
+    jobs = _jobs(("t", "perceptual-mt", 2), ("t", "perceptual-mt", 1), ("b", "perceptual-mt", 1))
+    pending = deque(jobs)
+    families = Families({"perceptual-mt": ("engine", "mt")}, {"perceptual-mt"})
+    assert next_job(pending, set(), None, families, 0) == jobs[0]
+    families.left_setup(0)
+    assert next_job(pending, {("t", "perceptual-mt")}, None, families, 1) == jobs[2]
+    families.left_setup(1)
+    assert next_job(pending, set(), None, families, 1) is None  # jobs[1] waits for t's MT
+    families.ended(0, left_setup=True)
+    assert next_job(pending, set(), None, families, 0) == jobs[1]
+    assert not pending
 
 
 @settings(max_examples=200, deadline=None)
@@ -115,14 +131,16 @@ def test_no_family_is_compiled_by_two_processes_and_every_job_runs_once(specs, e
     order: no family is ever claimed by two, a job starts only when none of its unbuilt
     families is claimed by another process, and every job runs exactly once."""
     jobs = _jobs(*specs)
-    pending, families = deque(jobs), Families(KERNELS)
+    pending, families = deque(jobs), Families(KERNELS, {"image-driven"})
     busy: dict[int, object] = {}
     taken = []
     events = list(events) + [(p, True) for _ in range(len(jobs) + 1) for p in range(3)]
     for owner, built in events:
         if owner in busy:  # its job leaves its set-up (and, here, ends)
             del busy[owner]
-            families.settle(owner, built)
+            if built:
+                families.left_setup(owner)
+            families.ended(owner, left_setup=built)
             continue
         if not pending:
             continue
@@ -131,7 +149,7 @@ def test_no_family_is_compiled_by_two_processes_and_every_job_runs_once(specs, e
             assert busy, "a job waits though no process compiles anything"
             continue
         others = {f for f, o in families.claims.items() if o != owner}
-        assert not others & set(families.kernels[job.method])
+        assert not others & set(families.needs(job))
         busy[owner] = job
         taken.append(job)
         claimed = list(families.claims)

@@ -102,6 +102,10 @@ class Method:
     #: ``bench warmup --jobs N`` compiles a family in one process before the other
     #: methods that need it start, so no two processes compile the same kernels
     kernels: ClassVar[tuple[str, ...]] = ()
+    #: the jobs of one model share work through ``ctx["cache_dir"]`` (e.g. a structure
+    #: built once for every budget): ``bench run`` starts one of them and the others
+    #: of that model once it has ended, rather than two building the work side by side
+    shares_work: ClassVar[bool] = False
 
     @dataclass
     class Params:

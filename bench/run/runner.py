@@ -134,30 +134,41 @@ def _group(job: Job) -> tuple[str, str]:
 
 
 class Families:
-    """The kernel families (:attr:`bench.core.method.Method.kernels`) a run's jobs warm
-    up, so that two job processes never compile the same numba kernels side by side.
+    """What a run's jobs build once and share: the kernel families
+    (:attr:`bench.core.method.Method.kernels`) they warm up, so that two job processes
+    never compile the same numba kernels side by side, and a model's shared work (a
+    method that :attr:`~bench.core.method.Method.shares_work`, e.g. perceptual-mt's
+    Multi-Triangulation), so that two processes never build it side by side.
 
-    A job's *families* are its method's kernel families and the method itself (whose
-    own kernels its first job compiles). The first job to need a family that is not yet
-    known to be built *claims* it: that job's warm-up compiles it on a cold numba cache,
-    or reads it from the cache in a second on a warm one. Jobs needing a claimed family
-    wait; the family is *built* once its job has left its set-up (the warm-up), and is
-    released unbuilt if the job ended there (skipped, failed or timed out), for the next
-    job to claim. The run knows nothing of the cache at its start, so this costs a warm
-    run a second or two of a process's waiting at most, and spares a cold one from
-    compiling a family in both processes at once: ``bench run`` on a cold cache then
-    compiles about as fast as ``bench warmup`` does, with the baselines' jobs, which
-    need no family, running meanwhile on the other process.
+    A job's *families* are its method's kernel families, the method itself (whose own
+    kernels its first job compiles) and, for a method that shares work, its model's
+    work. The first job to need a family that is not yet known to be built *claims*
+    it: that job's warm-up compiles the kernels on a cold numba cache, or reads them
+    from the cache in a second on a warm one. Jobs needing a claimed family wait; a
+    kernel family is *built* once its job has left its set-up (the warm-up), a model's
+    work once its job has ended; a kernel family is released unbuilt if its job ended
+    in its set-up (skipped, failed or timed out), for the next job to claim. The run
+    knows nothing of the cache at its start, so this costs a warm run a second or two
+    of a process's waiting at most, and spares a cold one from compiling a family in
+    both processes at once: ``bench run`` on a cold cache then compiles about as fast
+    as ``bench warmup`` does, with the baselines' jobs, which need no family, running
+    meanwhile on the other process.
     """
 
-    def __init__(self, kernels: dict[str, tuple[str, ...]]):
+    def __init__(self, kernels: dict[str, tuple[str, ...]], shares_work: set[str] = frozenset()):
         self.kernels = {method: tuple(("kernels", f) for f in families) + (("method", method),)
                         for method, families in kernels.items()}
-        self.built: set[tuple[str, str]] = set()
-        self.claims: dict[tuple[str, str], object] = {}
+        self.shares_work = set(shares_work)
+        self.built: set[tuple[str, ...]] = set()
+        self.claims: dict[tuple[str, ...], object] = {}
 
-    def _unbuilt(self, job: Job) -> list[tuple[str, str]]:
-        return [f for f in self.kernels.get(job.method, ()) if f not in self.built]
+    def needs(self, job: Job) -> tuple[tuple[str, ...], ...]:
+        """The families ``job`` needs."""
+        work = (("work", job.model, job.method),) if job.method in self.shares_work else ()
+        return self.kernels.get(job.method, ()) + work
+
+    def _unbuilt(self, job: Job) -> list[tuple[str, ...]]:
+        return [f for f in self.needs(job) if f not in self.built]
 
     def waits(self, job: Job) -> bool:
         """Whether ``job`` needs a family that another job is building."""
@@ -171,9 +182,19 @@ class Families:
         for family in self._unbuilt(job):
             self.claims.setdefault(family, owner)
 
-    def settle(self, owner, built: bool) -> None:
-        """``owner``'s job left its set-up (``built``) or ended in it (not built)."""
-        for family in [f for f, o in self.claims.items() if o == owner]:
+    def left_setup(self, owner) -> None:
+        """``owner``'s job has warmed up: the kernels it claimed are built."""
+        self._settle(owner, built=True, kinds=("kernels", "method"))
+
+    def ended(self, owner, left_setup: bool) -> None:
+        """``owner``'s job ended, after its set-up or in it: its model's work is built
+        (or, failed, left for the next job to build); its kernels are built if it left
+        its set-up, else released."""
+        self._settle(owner, built=left_setup, kinds=("kernels", "method"))
+        self._settle(owner, built=True, kinds=("work",))
+
+    def _settle(self, owner, built: bool, kinds: tuple[str, ...]) -> None:
+        for family in [f for f, o in self.claims.items() if o == owner and f[0] in kinds]:
             del self.claims[family]
             if built:
                 self.built.add(family)
@@ -182,19 +203,19 @@ class Families:
 def next_job(pending: deque, running: set, last: tuple[str, str] | None,
              families: Families | None = None, owner=None) -> Job | None:
     """Take from ``pending`` the job a free process should run next, or None if every
-    waiting job needs kernels another process is compiling (:class:`Families`; the
-    process then waits). First a job that is the first to build a kernel family,
+    waiting job needs kernels another process is compiling or work another process is
+    building (:class:`Families`; the process then waits). First a job that is the first to build a kernel family,
     needing the fewest families (the engine's, the long compile, starts at once, and
     the families built on it as soon as it is built); then one of the group
     (:func:`_group`) this process ran last, so what it cached in memory is reused; else
     the first whose group no other process is running, so two processes do not build
-    the same shared work side by side; else the first (never idle while jobs wait)."""
+    the same shared work side by side; else the first ready one."""
     ready = [job for job in pending if families is None or not families.waits(job)]
     if not ready:
         return None
     builders = [job for job in ready if families is not None and families.builds_kernels(job)]
     if builders:
-        job = min(builders, key=lambda j: len(families.kernels[j.method]))  # the first of equals
+        job = min(builders, key=lambda j: len(families.needs(j)))  # the first of equals
     else:
         free = [job for job in ready if _group(job) not in running]
         job = next((j for j in free if _group(j) == last), free[0] if free else ready[0])
@@ -209,8 +230,9 @@ def _families(jobs: list[Job]) -> Families:
     from bench.core.registry import registry
 
     methods = registry("method")
-    return Families({name: tuple(getattr(methods.load(name), "kernels", ()))
-                     for name in dict.fromkeys(job.method for job in jobs)})
+    classes = {name: methods.load(name) for name in dict.fromkeys(job.method for job in jobs)}
+    return Families({name: tuple(getattr(cls, "kernels", ())) for name, cls in classes.items()},
+                    {name for name, cls in classes.items() if getattr(cls, "shares_work", False)})
 
 
 class LocalPool:
@@ -268,13 +290,13 @@ class LocalPool:
                     result = proc.collect()  # None: the job only reported a phase
                     if result is None:
                         if proc.phase != "setup":
-                            families.settle(i, built=True)
+                            families.left_setup(i)
                         continue
                 elif proc.expired(timeout):
                     result = proc.timed_out(timeout)
                 else:
                     continue
-                families.settle(i, built=proc.phase != "setup")
+                families.ended(i, left_setup=proc.phase != "setup")
                 done(result)
 
     def _worker(self, slot: int) -> dict:
