@@ -77,6 +77,22 @@ def fewer_collections():
         gc.set_threshold(*before)
 
 
+@contextmanager
+def with_helpers():
+    """numba's parallel kernels at two threads or more for the block, where numba
+    started two: a job of ``bench run --jobs 2`` has one thread, and so its method no
+    view helpers (``methods.engine.views``), but the warm-up compiles the helpers'
+    kernels too, so that a later run with more threads per job compiles nothing."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(max(before, min(2, numba.config.NUMBA_NUM_THREADS)))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
 def warm_up(method_cls, params=None, ctx=None) -> float:
     """Run ``method_cls(params)`` on both tiny meshes once per process and return the
     seconds it took (0 when this process already warmed it up, or when the method says
@@ -91,7 +107,7 @@ def warm_up(method_cls, params=None, ctx=None) -> float:
     for mesh in tiny_meshes():
         if getattr(method_cls, "needs_uv", False) and mesh.uv is None:
             continue
-        with warnings.catch_warnings(), fewer_collections():
+        with warnings.catch_warnings(), fewer_collections(), with_helpers():
             warnings.simplefilter("ignore")
             try:
                 run_method(method_cls(params), mesh, mesh.n_faces // 2,
