@@ -3,8 +3,8 @@
     .venv/bin/python scripts/speed_targets.py [--rounds 3] [--rows methods,scale,...]
                                               [--threads T] [--markdown FILE]
 
-Rows (``--rows``, default ``methods,scale,overhead,evaluation``; ``curve`` and ``warmup``
-take long and run only when named):
+Rows (``--rows``, default ``methods,scale,overhead,evaluation``; ``curve``, ``warmup`` and
+``firstrun`` take long and run only when named):
 
 - ``methods``: the view-based methods on the papers' models (the bunny to 1,332 faces,
   González et al. 2008's Table 1 sizes), each over qslim's time on the bunny.
@@ -21,6 +21,9 @@ take long and run only when named):
   jobs, and a job's time outside its method.
 - ``warmup``: ``bench warmup`` from an empty numba cache (a fresh ``NUMBA_CACHE_DIR``),
   with as many processes as ``--warmup-jobs`` (default: every core).
+- ``firstrun``: the main job (what setup runs after the install) from an empty numba
+  cache, whose jobs compile the kernels as they go, then the same run on the cache it
+  filled; the first's time over the second's.
 
 Every timed job runs in a fresh process: the model is loaded, the method warmed up on the
 tiny meshes of :mod:`bench.run.warmup` (numba's cache loading or compilation is not
@@ -298,6 +301,41 @@ def warmup_table(rounds: int, jobs: int | None) -> list[str]:
             f"≤ {WARMUP_TARGET:g} s {'met' if med <= WARMUP_TARGET else 'NOT met'} |", ""]
 
 
+#: The main job (what ``scripts/setup.sh`` runs after the install).
+MAIN_JOB = ["run", "--models", "bunny,torus", "--no-report"]
+
+
+def first_run_table(rounds: int) -> list[str]:
+    """The main job from an empty numba cache (its jobs compile the kernels as they go),
+    then the same run again on the cache it filled: the first's time over the second's."""
+    cold, warm, compiles = [], [], []
+    for r in range(rounds):
+        cache = tempfile.mkdtemp(prefix="numba-cold-")
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        with tempfile.TemporaryDirectory() as tmp:
+            for runs, name in ((cold, "cold"), (warm, "warm")):
+                out = Path(tmp) / name
+                start = time.perf_counter()
+                _run([*BENCH, *MAIN_JOB, "--out", str(out)], f"bench run ({name})", env)
+                runs.append(time.perf_counter() - start)
+                if name == "cold":
+                    compiles.append(max(json.loads(p.read_text()).get("timings", {})
+                                        .get("warm_up", 0.0)
+                                        for p in (out / "records").glob("*.json")))
+        shutil.rmtree(cache, ignore_errors=True)
+        print(f"first run round {r + 1}: cold {cold[-1]:.1f} s, warm {warm[-1]:.1f} s",
+              file=sys.stderr, flush=True)
+    med_cold, med_warm = statistics.median(cold), statistics.median(warm)
+    return ["### The main job from an empty numba cache", "",
+            f"`bench {' '.join(MAIN_JOB)}`, first from an empty numba cache (its jobs compile "
+            "the kernels as they go), then again on the cache it filled.", "",
+            "| cold s (runs) | warm s (runs) | median cold − warm | cold / warm | "
+            "longest warm-up of a job (runs) |", "| --- | --- | ---: | ---: | --- |",
+            f"| {', '.join(f'{x:.0f}' for x in cold)} | {', '.join(f'{x:.0f}' for x in warm)} "
+            f"| {med_cold - med_warm:.0f} s | {med_cold / med_warm:.2f}× "
+            f"| {', '.join(f'{x:.0f} s' for x in compiles)} |", ""]
+
+
 def machine() -> str:
     cpu = platform.processor() or platform.machine()
     try:
@@ -310,7 +348,7 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
-ROWS = ("methods", "scale", "curve", "overhead", "evaluation", "warmup")
+ROWS = ("methods", "scale", "curve", "overhead", "evaluation", "warmup", "firstrun")
 
 
 def main() -> None:
@@ -348,6 +386,8 @@ def main() -> None:
         lines += evaluation_table(args.rounds, args.threads, args.evaluation_run)
     if "warmup" in rows:
         lines += warmup_table(args.rounds, args.warmup_jobs)
+    if "firstrun" in rows:
+        lines += first_run_table(args.rounds)
     text = "\n".join(lines)
     print(text)
     if args.markdown:

@@ -2,8 +2,11 @@
 
 from collections import deque
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from bench.run.jobs import Job
-from bench.run.runner import next_job
+from bench.run.runner import Families, next_job
 
 
 def _jobs(*specs):
@@ -67,11 +70,6 @@ def test_every_job_is_taken_once():
 
 
 # -- kernel families: one process compiles a family, the others wait or run other jobs --
-
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-from bench.run.runner import Families  # noqa: E402
 
 KERNELS = {"qslim": (), "memoryless": ("engine",), "image-driven": ("engine", "imaging"),
            "entropy-twin": ("engine", "imaging", "canny")}
