@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import base64
 import io
+from functools import lru_cache
 from pathlib import Path, PurePosixPath
 from typing import NamedTuple
 from urllib.parse import quote
@@ -141,19 +142,35 @@ def _decode(data: bytes):
         return None
 
 
+def _luminance(data: bytes) -> np.ndarray | None:
+    """The luminance of a PNG's pixels, or None when it cannot be decoded."""
+    from metrics.image import luminance
+
+    image = _decode(data)
+    return None if image is None else luminance(np.asarray(image))
+
+
+@lru_cache(maxsize=16)
+def _original_luminance(data: bytes) -> np.ndarray | None:
+    """:func:`_luminance` of an original's view, which every result of the model is
+    compared with (read-only: it is shared)."""
+    y = _luminance(data)
+    if y is not None:
+        y.flags.writeable = False
+    return y
+
+
 def difference_png(original: Png | None, simplified: Png | None) -> bytes | None:
     """|ΔY| scaled ×4 and inverted (white = equal), as in Plate 13's difference images,
     as PNG bytes; None when either image is missing or the two cannot be compared."""
     from PIL import Image
 
-    from metrics.image import luminance
-
     if original is None or simplified is None:
         return None
-    a, b = _decode(original.data), _decode(simplified.data)
-    if a is None or b is None or a.size != b.size:
+    a, b = _original_luminance(original.data), _luminance(simplified.data)
+    if a is None or b is None or a.shape != b.shape:
         return None
-    diff = 255 - np.clip(4 * np.abs(luminance(np.asarray(a)) - luminance(np.asarray(b))), 0, 255)
+    diff = 255 - np.clip(4 * np.abs(a - b), 0, 255)
     buf = io.BytesIO()
     Image.fromarray(diff.astype(np.uint8)).save(buf, format="PNG")
     return buf.getvalue()
@@ -217,6 +234,7 @@ class RunFiles:
     def __init__(self, run_dir: Path, refused: list[str]):
         self.root = Path(run_dir).resolve()
         self.refused = refused
+        self._shown: dict[str, Shown | None] = {}  # by path: an original's views recur
 
     def plot(self, fig, name: str) -> str:
         """``fig`` as ``images/plots/<name>.svg``; ``name`` is the report's own
@@ -229,7 +247,13 @@ class RunFiles:
         return _url(path) if self._write(path, data) else ""
 
     def view(self, png: Png) -> Shown | None:
-        """The thumbnail of a PNG of the run folder, linking to the PNG itself."""
+        """The thumbnail of a PNG of the run folder, linking to the PNG itself (made
+        once per file: the original's views are shown beside every result's)."""
+        if png.path not in self._shown:
+            self._shown[png.path] = self._thumbnail(png)
+        return self._shown[png.path]
+
+    def _thumbnail(self, png: Png) -> Shown | None:
         data = thumbnail(png.data)
         if data is None:
             self.refused.append(f"image {png.path!r}: cannot be decoded; not shown")
