@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.run.jobs import Job
-from bench.run.runner import Families, next_job
+from bench.run.runner import Families, _families, next_job
 
 
 def _jobs(*specs):
@@ -120,6 +120,24 @@ def test_a_models_shared_work_is_built_by_one_job_before_the_others_start():
     assert not pending
 
 
+def test_a_models_shared_work_is_left_to_the_next_job_when_its_job_failed():
+    jobs = _jobs(("t", "perceptual-mt", 2), ("t", "perceptual-mt", 1))
+    pending = deque(jobs)
+    families = Families({"perceptual-mt": ()}, {"perceptual-mt"})
+    assert next_job(pending, set(), None, families, 0) == jobs[0]
+    families.left_setup(0)
+    families.ended(0, left_setup=True, failed=True)  # e.g. timed out building the MT
+    assert next_job(pending, set(), None, families, 1) == jobs[1]
+    assert families.claims == {("work", "t", "perceptual-mt"): 1}
+
+
+def test_a_method_the_supervisor_cannot_load_needs_no_family():
+    """A plug-in only the job processes find (its path set after this process loaded the
+    registry) is run, not refused: its job process loads it or fails the job."""
+    families = _families(_jobs(("a", "no-such-method", 9), ("a", "qslim", 9)))
+    assert families.needs(Job("a", "no-such-method", 9)) == (("method", "no-such-method"),)
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.tuples(st.sampled_from("ab"), st.sampled_from(sorted(KERNELS)),
                           st.integers(1, 3)), min_size=1, max_size=12, unique=True),
@@ -138,7 +156,7 @@ def test_no_family_is_compiled_by_two_processes_and_every_job_runs_once(specs, e
             del busy[owner]
             if built:
                 families.left_setup(owner)
-            families.ended(owner, left_setup=built)
+            families.ended(owner, left_setup=built, failed=not built)
             continue
         if not pending:
             continue

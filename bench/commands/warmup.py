@@ -2,8 +2,9 @@
 the evaluation's.
 
 numba keeps what it compiles on disk, so after this the first real run of a method
-loads its kernels in about a second instead of compiling them for minutes (what
-``scripts/setup.sh`` does once after installing)."""
+loads its kernels in about a second instead of compiling them for minutes
+(``scripts/setup.sh --no-run`` does it once after installing; without ``--no-run`` the
+main job's jobs compile them as they go)."""
 
 from __future__ import annotations
 

@@ -264,14 +264,16 @@ def _run_job(job: Job, cache_dir: Path, result: JobResult, mesh, phase) -> None:
                           [f"{k}={param_text(v)}" for k, v in job.params.items()])
     record["job"]["params_all"] = dataclasses.asdict(params)
 
+    # the evaluation's kernels, once per process, so that its timings hold none of their
+    # compilation or loading (in the warm-up's timing; not the method's peak memory)
+    warm_up_evaluation_once()
     peak = _PeakMemory()
     # shading-aware methods optimise for the evaluation's shading unless told otherwise
     ctx = {"shading": job.protocol.shading, "specular": job.protocol.specular,
            # work a method may share between the run's jobs (e.g. perceptual-mt's MT)
            "cache_dir": str(cache_dir)}
-    # numba compilation or cache loading is not method time: warm up first, apart (the
-    # evaluation's kernels too, once per process, so that its timings hold none of it)
-    compile_seconds = warm_up(method_cls, params, ctx) + warm_up_evaluation_once()
+    # numba compilation or cache loading is not method time: warm up first, apart
+    compile_seconds = warm_up(method_cls, params, ctx)
     clock.lap("warm_up")
     phase("method")
     simplified = run_method(method_cls(params), mesh, job.target_faces, ctx)
@@ -333,7 +335,9 @@ class _Stopwatch:
         self.last = now
 
     def total(self) -> float:
-        return time.perf_counter() - self.start
+        """The seconds up to the last lap: the laps' sum, whatever the machine's load
+        between that lap and this call."""
+        return self.last - self.start
 
 
 def evaluate_result(original, result, protocol, reference_images=None):

@@ -147,15 +147,19 @@ class Families:
     from the cache in a second on a warm one. Jobs needing a claimed family wait; a
     kernel family is *built* once its job has left its set-up (the warm-up), a model's
     work once its job has ended; a kernel family is released unbuilt if its job ended
-    in its set-up (skipped, failed or timed out), for the next job to claim. The run
-    knows nothing of the cache at its start, so this costs a warm run a second or two
-    of a process's waiting at most, and spares a cold one from compiling a family in
-    both processes at once: ``bench run`` on a cold cache then compiles about as fast
-    as ``bench warmup`` does, with the baselines' jobs, which need no family, running
-    meanwhile on the other process.
+    in its set-up (skipped, failed or timed out), and a model's work if its job failed,
+    for the next job to claim. The run knows nothing of the cache at its start, so on a
+    warm one a process may wait while the claiming job loads its model and reads the
+    kernels from the cache (about a second for the built-in models), and on a cold one
+    no family is compiled in both processes at once: ``bench run`` then compiles about
+    as fast as ``bench warmup`` does, with the baselines' jobs, which need no family,
+    running meanwhile on the other process. (The evaluation's kernels, a few seconds,
+    are compiled by each process's first job, in both at once on a cold cache.) The
+    local executor only: a Dask worker's jobs compile what they need as before.
     """
 
-    def __init__(self, kernels: dict[str, tuple[str, ...]], shares_work: set[str] = frozenset()):
+    def __init__(self, kernels: dict[str, tuple[str, ...]],
+                 shares_work: frozenset[str] | set[str] = frozenset()):
         self.kernels = {method: tuple(("kernels", f) for f in families) + (("method", method),)
                         for method, families in kernels.items()}
         self.shares_work = set(shares_work)
@@ -186,12 +190,12 @@ class Families:
         """``owner``'s job has warmed up: the kernels it claimed are built."""
         self._settle(owner, built=True, kinds=("kernels", "method"))
 
-    def ended(self, owner, left_setup: bool) -> None:
-        """``owner``'s job ended, after its set-up or in it: its model's work is built
-        (or, failed, left for the next job to build); its kernels are built if it left
-        its set-up, else released."""
+    def ended(self, owner, left_setup: bool, failed: bool = False) -> None:
+        """``owner``'s job ended, after its set-up or in it: its kernels are built if it
+        left its set-up, else released; its model's work is built unless the job
+        failed, else released for the next job to build."""
         self._settle(owner, built=left_setup, kinds=("kernels", "method"))
-        self._settle(owner, built=True, kinds=("work",))
+        self._settle(owner, built=not failed, kinds=("work",))
 
     def _settle(self, owner, built: bool, kinds: tuple[str, ...]) -> None:
         for family in [f for f, o in self.claims.items() if o == owner and f[0] in kinds]:
@@ -204,9 +208,10 @@ def next_job(pending: deque, running: set, last: tuple[str, str] | None,
              families: Families | None = None, owner=None) -> Job | None:
     """Take from ``pending`` the job a free process should run next, or None if every
     waiting job needs kernels another process is compiling or work another process is
-    building (:class:`Families`; the process then waits). First a job that is the first to build a kernel family,
-    needing the fewest families (the engine's, the long compile, starts at once, and
-    the families built on it as soon as it is built); then one of the group
+    building (:class:`Families`; the process then waits). First a job that is the first
+    to build a kernel family, needing the fewest families (the engine's, the long
+    compile, starts at once, and the families built on it as soon as it is built);
+    then one of the group
     (:func:`_group`) this process ran last, so what it cached in memory is reused; else
     the first whose group no other process is running, so two processes do not build
     the same shared work side by side; else the first ready one."""
@@ -230,7 +235,12 @@ def _families(jobs: list[Job]) -> Families:
     from bench.core.registry import registry
 
     methods = registry("method")
-    classes = {name: methods.load(name) for name in dict.fromkeys(job.method for job in jobs)}
+    classes = {}
+    for name in dict.fromkeys(job.method for job in jobs):
+        try:
+            classes[name] = methods.load(name)
+        except Exception:  # noqa: BLE001 - the job process loads it, or fails the job
+            classes[name] = None  # e.g. a plug-in this process's registry does not know
     return Families({name: tuple(getattr(cls, "kernels", ())) for name, cls in classes.items()},
                     {name for name, cls in classes.items() if getattr(cls, "shares_work", False)})
 
@@ -296,7 +306,7 @@ class LocalPool:
                     result = proc.timed_out(timeout)
                 else:
                     continue
-                families.ended(i, left_setup=proc.phase != "setup")
+                families.ended(i, left_setup=proc.phase != "setup", failed=result.failed)
                 done(result)
 
     def _worker(self, slot: int) -> dict:
