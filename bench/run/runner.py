@@ -211,10 +211,10 @@ def next_job(pending: deque, running: set, last: tuple[str, str] | None,
     building (:class:`Families`; the process then waits). First a job that is the first
     to build a kernel family, needing the fewest families (the engine's, the long
     compile, starts at once, and the families built on it as soon as it is built);
-    then one of the group
-    (:func:`_group`) this process ran last, so what it cached in memory is reused; else
-    the first whose group no other process is running, so two processes do not build
-    the same shared work side by side; else the first ready one."""
+    then one of the group (:func:`_group`) this process ran last, so what it cached in
+    memory is reused; else the first whose group no other process is running, so two
+    processes do not build the same shared work side by side; else the first ready
+    one."""
     ready = [job for job in pending if families is None or not families.waits(job)]
     if not ready:
         return None
