@@ -172,3 +172,22 @@ def test_no_family_is_compiled_by_two_processes_and_every_job_runs_once(specs, e
         assert len(claimed) == len(set(claimed))
         assert not families.built & set(claimed)
     assert sorted(_labels(taken)) == sorted(_labels(jobs))
+
+
+def test_a_long_set_up_is_said_on_the_progress_bar():
+    """A job warming up for longer than SETUP_NOTE_AFTER (a first run, compiling) is
+    named; one in its method, or warming up briefly, is not."""
+    import time
+    from types import SimpleNamespace
+
+    from bench.run.runner import SETUP_NOTE_AFTER, setup_note
+
+    now = time.monotonic()
+    job = Job("bunny", "memoryless", 1123)
+    compiling = SimpleNamespace(job=job, phase="setup", started=now - SETUP_NOTE_AFTER - 5)
+    running = SimpleNamespace(job=job, phase="method", started=now - 100)
+    brief = SimpleNamespace(job=job, phase="setup", started=now)
+    idle = SimpleNamespace(job=None, phase="setup", started=now - 100)
+    assert setup_note([None, idle, running, brief]) is None
+    text = setup_note([running, compiling])
+    assert text.startswith("bunny memoryless 1123: warming up for 15 s")

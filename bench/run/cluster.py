@@ -140,8 +140,11 @@ class DaskExecutor:
         services = self.client.scheduler_info(n_workers=0).get("services", {})
         return self.client.dashboard_link if "dashboard" in services else None
 
-    def run(self, jobs: list[Job], timeout: float, done: Callable[[JobResult], None]) -> None:
-        """Submit ``jobs`` as worker threads free up and hand each result to ``done``."""
+    def run(self, jobs: list[Job], timeout: float, done: Callable[[JobResult], None],
+            note: Callable[[str], None] = lambda text: None) -> None:
+        """Submit ``jobs`` as worker threads free up and hand each result to ``done``
+        (``note``, the local executor's word on a long set-up, has nothing to say here:
+        the jobs' phases stay on the workers)."""
         distributed = _distributed()
         from bench.run.dask_worker import run_on_worker
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from collections import deque
 from collections.abc import Callable
 from multiprocessing.connection import wait
@@ -102,7 +103,7 @@ def execute(jobs: list[Job], run_dir: Path, workers: int = 1, timeout: float = 9
             bar.update(1)
 
         try:
-            pool.run(jobs, timeout, done)
+            pool.run(jobs, timeout, done, lambda text: bar.set_postfix_str(text))
         finally:
             bar.close()
     return records
@@ -245,6 +246,26 @@ def _families(jobs: list[Job]) -> Families:
                     {name for name, cls in classes.items() if getattr(cls, "shares_work", False)})
 
 
+#: Seconds of a job's set-up after which the progress bar says what it is doing: on a
+#: first run, numba compiles the kernels there for minutes while the bar stands still.
+SETUP_NOTE_AFTER = 10.0
+
+
+def setup_note(procs, after: float | None = None) -> str | None:
+    """A line for the progress bar about the first of ``procs`` whose job has been in
+    its set-up for more than ``after`` seconds (:data:`SETUP_NOTE_AFTER`), or None."""
+    after = SETUP_NOTE_AFTER if after is None else after
+    now = time.monotonic()
+    for proc in procs:
+        if proc is not None and proc.job is not None and proc.phase == "setup" \
+                and now - proc.started > after:
+            job = proc.job
+            return (f"{job.model} {job.label} {job.target_faces}: warming up for "
+                    f"{now - proc.started:.0f} s (a first run compiles numba's kernels; "
+                    "they are cached for the next)")
+    return None
+
+
 class LocalPool:
     """``workers`` job processes on this machine, each given a job when free
     (:func:`next_job`: the plan's order, except that the first job to need a kernel
@@ -276,7 +297,10 @@ class LocalPool:
                 proc.close()
         self.slots = []
 
-    def run(self, jobs: list[Job], timeout: float, done: Callable[[JobResult], None]) -> None:
+    def run(self, jobs: list[Job], timeout: float, done: Callable[[JobResult], None],
+            note: Callable[[str], None] = lambda text: None) -> None:
+        """Run ``jobs``, handing each result to ``done`` and a job's long set-up to
+        ``note`` (:func:`setup_note`)."""
         pending = deque(jobs)
         families = _families(jobs)
         self.slots = [None] * min(self.workers, len(jobs))
@@ -308,6 +332,9 @@ class LocalPool:
                     continue
                 families.ended(i, left_setup=proc.phase != "setup", failed=result.failed)
                 done(result)
+            text = setup_note(self.slots)
+            if text:
+                note(text)
 
     def _worker(self, slot: int) -> dict:
         import platform
