@@ -190,4 +190,4 @@ def test_a_long_set_up_is_said_on_the_progress_bar():
     idle = SimpleNamespace(job=None, phase="setup", started=now - 100)
     assert setup_note([None, idle, running, brief]) is None
     text = setup_note([running, compiling])
-    assert text.startswith("bunny memoryless 1123: warming up for 15 s")
+    assert text.startswith("bunny memoryless 1123: setting up for 15 s")

@@ -260,9 +260,9 @@ def setup_note(procs, after: float | None = None) -> str | None:
         if proc is not None and proc.job is not None and proc.phase == "setup" \
                 and now - proc.started > after:
             job = proc.job
-            return (f"{job.model} {job.label} {job.target_faces}: warming up for "
-                    f"{now - proc.started:.0f} s (a first run compiles numba's kernels; "
-                    "they are cached for the next)")
+            return (f"{job.model} {job.label} {job.target_faces}: setting up for "
+                    f"{now - proc.started:.0f} s (loading the model and warming up: a "
+                    "first run compiles numba's kernels, cached for the next)")
     return None
 
 
