@@ -161,8 +161,9 @@ class Families:
 
     def __init__(self, kernels: dict[str, tuple[str, ...]],
                  shares_work: frozenset[str] | set[str] = frozenset()):
-        self.kernels = {method: tuple(("kernels", f) for f in families) + (("method", method),)
-                        for method, families in kernels.items()}
+        # each method's kernel families and its own kernels
+        self.by_method = {method: (*(("kernels", f) for f in families), ("method", method))
+                          for method, families in kernels.items()}
         self.shares_work = set(shares_work)
         self.built: set[tuple[str, ...]] = set()
         self.claims: dict[tuple[str, ...], object] = {}
@@ -170,7 +171,7 @@ class Families:
     def needs(self, job: Job) -> tuple[tuple[str, ...], ...]:
         """The families ``job`` needs."""
         work = (("work", job.model, job.method),) if job.method in self.shares_work else ()
-        return self.kernels.get(job.method, ()) + work
+        return self.by_method.get(job.method, ()) + work
 
     def _unbuilt(self, job: Job) -> list[tuple[str, ...]]:
         return [f for f in self.needs(job) if f not in self.built]
