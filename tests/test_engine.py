@@ -14,6 +14,7 @@ from methods.engine.policy import Policy
 from methods.engine.quadrics import (
     _boundary_corners,
     _optimal_point,
+    best_of_ends,
     face_quadrics,
     initial_quadrics,
     quadric_error,
@@ -266,6 +267,25 @@ def test_optimal_point_matches_linear_solve_and_falls_back():
     err = _optimal_point(M1[np.triu_indices(4)], np.array([0, 0, 0.0]), np.array([0, 0, 1.0]), out)
     np.testing.assert_array_equal(out, [0, 0, 1])
     assert err == 0.0
+
+
+def test_best_of_ends_takes_the_lowest_error_and_the_first_of_equal_ones():
+    def plane(a, b, c, d):
+        return np.outer([a, b, c, d], [a, b, c, d])[np.triu_indices(4)]
+
+    pa, pb, out = np.array([0.0, 0, 0]), np.array([2.0, 0, 0]), np.empty(3)
+    # x = 1 passes through the midpoint only
+    assert best_of_ends(plane(1, 0, 0, -1.0), pa, pb, out) == 0.0
+    np.testing.assert_array_equal(out, [1, 0, 0])
+    # x = 2 holds b
+    assert best_of_ends(plane(1, 0, 0, -2.0), pa, pb, out) == 0.0
+    np.testing.assert_array_equal(out, pb)
+    # y = 0 holds all three: a, the first tried
+    assert best_of_ends(plane(0, 1, 0, 0.0), pa, pb, out) == 0.0
+    np.testing.assert_array_equal(out, pa)
+    # x = 1.5: b and the midpoint 0.25 apart, a 2.25: b, tried before the midpoint
+    assert best_of_ends(plane(1, 0, 0, -1.5), pa, pb, out) == 0.25
+    np.testing.assert_array_equal(out, pb)
 
 
 def test_corner_lists_link_every_corner_once():

@@ -31,7 +31,7 @@ from methods.imaging.region import AFFECTED_CAP, MAX_RING
 from methods.imaging.rows import NORMAL_FACES_CAP
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def live_corners(x, vhead, cnext, falive):
     """How many live faces hold vertex ``x``."""
     n = 0
@@ -65,7 +65,7 @@ def merged_wedges(a, b, mesh, scratch):
     return np.unique(wedges[:k]).shape[0]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _ring_over_capacity(a, b, mesh, scratch):
     """With a rendered term: True when the vertices of the faces around ``a`` and ``b``
     (those whose normals a collapse changes) are more than ``MAX_RING``, one of them has
@@ -95,7 +95,24 @@ def _ring_over_capacity(a, b, mesh, scratch):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
+def _verdict(a, b, mesh, rules):
+    """:func:`over_capacity` without the rare count of merged wedges: 0 fits, 1 over,
+    2 the merged wedges must be counted. Compiled without reference counting (it
+    allocates nothing), as it runs for every candidate."""
+    corners = (live_corners(a, mesh.vhead, mesh.cnext, mesh.falive)
+               + live_corners(b, mesh.vhead, mesh.cnext, mesh.falive))
+    if corners <= WEDGE_TARGETS_CAP:  # every workspace below holds at least this many
+        return 0
+    rendered = rules.weights.image != 0.0 or rules.weights.entropy != 0.0
+    if corners > LOG_CHANGED_HEADROOM or (rendered and corners > NORMAL_FACES_CAP):
+        return 1
+    if rules.use_r5 and corners > PROFILE_CAP:
+        return 1
+    return 2
+
+
+@njit(cache=True, inline="always")
 def over_capacity(a, b, mesh, rules, scratch):
     """True when collapsing edge (a, b) would exceed a workspace of the engine (see the
     module's docstring); ``mesh``, ``rules`` and ``scratch`` are the structures of
@@ -103,12 +120,7 @@ def over_capacity(a, b, mesh, rules, scratch):
     rendered = rules.weights.image != 0.0 or rules.weights.entropy != 0.0
     if rendered and _ring_over_capacity(a, b, mesh, scratch):
         return True
-    corners = (live_corners(a, mesh.vhead, mesh.cnext, mesh.falive)
-               + live_corners(b, mesh.vhead, mesh.cnext, mesh.falive))
-    if corners <= WEDGE_TARGETS_CAP:  # every workspace below holds at least this many
-        return False
-    if corners > LOG_CHANGED_HEADROOM or (rendered and corners > NORMAL_FACES_CAP):
-        return True
-    if rules.use_r5 and corners > PROFILE_CAP:
-        return True
-    return merged_wedges(a, b, mesh, scratch) > WEDGE_TARGETS_CAP
+    verdict = _verdict(a, b, mesh, rules)
+    if verdict == 2:
+        return merged_wedges(a, b, mesh, scratch) > WEDGE_TARGETS_CAP
+    return verdict == 1

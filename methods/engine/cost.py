@@ -198,7 +198,7 @@ RING_BOX_MARGIN = 0.25
 LT_RING_BOX_MARGIN = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _near_ring(a, b, l2, mesh, p, factor):
     """True when ``p`` lies within the bounding box of the vertices of the faces around
     a and b enlarged by ``factor`` times the edge's length (the placement guard:
@@ -234,7 +234,7 @@ def _near_ring(a, b, l2, mesh, p, factor):
             and lo2 - margin <= p[2] <= hi2 + margin)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _guarded_optimal_point(a, b, l2, mesh, qsum, out_p):
     """The quadric's minimiser for edge (a, b) (:func:`_optimal_point`), unless it fails
     the placement guard (:func:`_near_ring`): then the best of the endpoints and the
@@ -350,7 +350,7 @@ def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, pe
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _cost_at(p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link,
              n_link, l2):
     cost = 0.0

@@ -47,7 +47,7 @@ def face_groups(F: np.ndarray, nv: int, materials: np.ndarray | None):
     return group, np.bincount(group, minlength=len(order)).astype(np.int64)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def empties_a_part(u, v, mesh, scratch):
     """True when removing the faces of edge (u, v) would leave one of their groups with
     no live face (:func:`face_groups`)."""
@@ -63,7 +63,7 @@ def empties_a_part(u, v, mesh, scratch):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def faces_removed(mesh, faces, n):
     """Count the removal of ``faces[:n]`` in their groups' live faces."""
     for i in range(n):

@@ -11,7 +11,7 @@ from numba import njit
 from bench.core.mesh import Mesh
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _plane_quadric(q, n, d, weight):
     a, b, c = n[0], n[1], n[2]
     q[0] += weight * a * a
@@ -26,7 +26,7 @@ def _plane_quadric(q, n, d, weight):
     q[9] += weight * d * d
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def quadric_error(q, p):
     """[p 1] Q [p 1]^T for a 10-float quadric ``q`` and a point ``p`` (3,)."""
     x, y, z = p[0], p[1], p[2]
@@ -91,7 +91,7 @@ def _add_boundary_quadrics(Q, P, F, alive, is_boundary_corner, weight):
             _plane_quadric(Q[j], m, d, weight * el2)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _optimal_point(q, pa, pb, out):
     """Minimise the quadric: solve the 3x3 system; if it is ill-conditioned, or its
     solution lies farther than the edge's length from the edge's midpoint, take the best
@@ -123,21 +123,24 @@ def _optimal_point(q, pa, pb, out):
     return best_of_ends(q, pa, pb, out)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def best_of_ends(q, pa, pb, out):
     """The best of the endpoints and the midpoint under quadric ``q``, into ``out``;
-    returns its error (the fallback of :func:`_optimal_point`)."""
+    returns its error (the fallback of :func:`_optimal_point`). The midpoint is tried
+    in ``out`` itself: nothing is allocated."""
     best = quadric_error(q, pa)
-    out[:] = pa
+    end = pa
     e = quadric_error(q, pb)
     if e < best:
         best = e
-        out[:] = pb
-    mid = 0.5 * (pa + pb)
-    e = quadric_error(q, mid)
+        end = pb
+    for i in range(3):
+        out[i] = 0.5 * (pa[i] + pb[i])
+    e = quadric_error(q, out)
     if e < best:
-        best = e
-        out[:] = mid
+        return e
+    for i in range(3):
+        out[i] = end[i]
     return best
 
 

@@ -20,7 +20,7 @@ from methods.engine.policy import (
 )
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _compact(v, vhead, cnext, falive):
     prev = -1
     c = vhead[v]
@@ -36,7 +36,7 @@ def _compact(v, vhead, cnext, falive):
         c = nxt
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _neighbors(v, F, vhead, cnext, falive, mark, tick, out):
     """Distinct neighbours of v into ``out``; returns their count. ``mark``/``tick``
     deduplicate without clearing (tick[0] is bumped per call)."""
@@ -58,7 +58,7 @@ def _neighbors(v, F, vhead, cnext, falive, mark, tick, out):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _edge_faces(u, v, F, vhead, cnext, falive, out):
     """Alive faces containing both u and v, into ``out``; returns the count."""
     n = 0
@@ -105,7 +105,7 @@ def _candidate_edges(mesh, efaces):
     return edges[:n]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _third(F, f, a, b):
     for k in range(3):
         w = F[f, k]
@@ -119,7 +119,7 @@ def _normal(pa, pb, pc):
     return np.cross(pb - pa, pc - pa)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _normal3(ax, ay, az, bx, by, bz, cx, cy, cz):
     """(b - a) x (c - a) from scalars: no temporary arrays in the hot loop."""
     ux, uy, uz = bx - ax, by - ay, bz - az
@@ -127,7 +127,7 @@ def _normal3(ax, ay, az, bx, by, bz, cx, cy, cz):
     return uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nbr_v,
            efaces, cos_limit, boundary_lock):
     """VALID if collapsing u into v at p is valid, else the REJECT_* code of the first
@@ -256,7 +256,7 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, t
     return n_tris, n_bnd, n_link
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _has_vertex(F, f, x):
     return F[f, 0] == x or F[f, 1] == x or F[f, 2] == x
 

@@ -14,7 +14,7 @@ from methods.engine.state import KIND_STRANDED, KIND_STRANDED_WEDGES, KIND_TWIN
 from methods.engine.topology import _edge_faces, _has_vertex
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _is_seam_vertex(v, FW, vhead, cnext, falive):
     """True when the faces around v use more than one wedge for it."""
     first = -1
@@ -30,7 +30,7 @@ def _is_seam_vertex(v, FW, vhead, cnext, falive):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
     """True when the edge's two faces use different wedges for one of its ends."""
     if _edge_faces(u, v, F, vhead, cnext, falive, efaces) != 2:
@@ -40,7 +40,7 @@ def _is_seam_edge(u, v, F, FW, vhead, cnext, falive, efaces):
     return fu != gu or fv != gv
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def corner_wedges(F, FW, f, a, b):
     """The wedges of vertices ``a`` and ``b`` in face ``f`` (-1 when absent)."""
     wa = -1
@@ -53,7 +53,7 @@ def corner_wedges(F, FW, f, a, b):
     return wa, wb
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
     """The distinct pairs (wedge of u -> wedge of v) across the faces of edge (u, v):
     each side of the edge merges its own two wedges. Returns the number of pairs.
@@ -81,7 +81,7 @@ def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
     return npairs
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets):
     """The distinct wedges the merged vertex will have (after pairing); returns count."""
     nt = 0
@@ -118,7 +118,7 @@ def _edge_parameter(u, v, p, P):
     return t
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _mapped(w, wmap_from, wmap_to, npairs):
     for i in range(npairs):
         if wmap_from[i] == w:
