@@ -148,13 +148,13 @@ _TRIPLES = np.array([[a, b, c] for a in range(5) for b in range(a + 1, 5)
 
 # -- small linear algebra -----------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _det3(a0, a1, a2, b0, b1, b2, c0, c1, c2):
     """Determinant of the 3x3 matrix with rows (a, b, c)."""
     return a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _frobenius3(H):
     s = 0.0
     for i in range(3):
@@ -163,7 +163,7 @@ def _frobenius3(H):
     return math.sqrt(s)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _check_profile(tri_a, tri_b, tri_c, n_tris, bnd_a, bnd_b, n_bnd):
     """Raise ValueError when a count is negative or exceeds its arrays' rows."""
     if n_tris < 0 or n_tris > tri_a.shape[0] or n_tris > tri_b.shape[0] \
@@ -173,7 +173,7 @@ def _check_profile(tri_a, tri_b, tri_c, n_tris, bnd_a, bnd_b, n_bnd):
         raise ValueError("n_bnd must be in [0, rows of bnd_a/bnd_b]")
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _check_link(link, n_link):
     if n_link < 0 or n_link > link.shape[0]:
         raise ValueError("n_link must be in [0, rows of link]")
@@ -181,7 +181,7 @@ def _check_link(link, n_link):
 
 # -- the constraint system A p = b (3D) ---------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _add_if_alpha_compatible(A, b, n, a0, a1, a2, rhs, ref, cos2, sin2):
     """Append the equation a · p = rhs to the first ``n`` rows of ``A p = b`` if it is
     alpha-compatible with them; return the new count.
@@ -274,7 +274,7 @@ def _add_from_gradient(A, b, n, H, c, ref, cos2, sin2):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _quad_form(H, x0, x1, x2, y0, y1, y2):
     """xᵀ H y."""
     return (x0 * (H[0, 0] * y0 + H[0, 1] * y1 + H[0, 2] * y2)
@@ -282,7 +282,7 @@ def _quad_form(H, x0, x1, x2, y0, y1, y2):
             + x2 * (H[2, 0] * y0 + H[2, 1] * y1 + H[2, 2] * y2))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _add_projected_row(A, b, n, H, c, q0, q1, q2, ref, cos2, sin2):
     """Candidate (H q) · p = -q · c for a unit free direction q (H symmetric)."""
     a0 = H[0, 0] * q0 + H[0, 1] * q1 + H[0, 2] * q2
@@ -292,7 +292,7 @@ def _add_projected_row(A, b, n, H, c, q0, q1, q2, ref, cos2, sin2):
     return _add_if_alpha_compatible(A, b, n, a0, a1, a2, rhs, ref, cos2, sin2)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _solve3(A, b, out):
     """Solve A x = b by Cramer's rule into ``out``; return False if singular/non-finite."""
     c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
@@ -316,7 +316,7 @@ def _solve3(A, b, out):
 # first triangle): the determinants below are then free of the cancellation a far-away
 # world origin would cause, and the result does not depend on where the mesh sits.
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _triangle_normal_det(tri_a, tri_b, tri_c, i, o):
     """n_T = (b - a) × (c - a) (twice the area vector) and det[a, b, c] = n_T · a for
     triangle i, corners relative to ``o``: V_T(p) = (det - n_T · p) / 6."""
@@ -335,7 +335,7 @@ def _triangle_normal_det(tri_a, tri_b, tri_c, i, o):
     return n0, n1, n2, n0 * a0 + n1 * a1 + n2 * a2
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _boundary_edge_terms(bnd_a, bnd_b, j, o):
     """e = t - s and m = s × t for boundary edge j (relative to ``o``): the swept area
     vector is A_e(p) = ½ (e × p + m)."""
@@ -349,7 +349,7 @@ def _boundary_edge_terms(bnd_a, bnd_b, j, o):
             s1 * t2 - s2 * t1, s2 * t0 - s0 * t2, s0 * t1 - s1 * t0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _add_cross_gram(H, e0, e1, e2, w):
     """H += w ([e]×ᵀ [e]×) = w (|e|² I - e eᵀ)."""
     ee = e0 * e0 + e1 * e1 + e2 * e2
@@ -364,7 +364,7 @@ def _add_cross_gram(H, e0, e1, e2, w):
     H[2, 1] -= w * e1 * e2
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _add_volume_preservation(A, b, n, tri_a, tri_b, tri_c, n_tris, o, cos2, sin2):
     """Σ_T V_T(p) = 0  ⇔  (Σ n_T) · p = Σ det[a, b, c]."""
     s0 = s1 = s2 = sd = ref = 0.0
@@ -524,7 +524,7 @@ def lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
     return p, True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
             edge_sq_len, volume_weight=VOLUME_WEIGHT, boundary_weight=BOUNDARY_WEIGHT,
             shape_weight=SHAPE_WEIGHT):
@@ -575,7 +575,7 @@ def lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
 
 # -- texture coordinates in R^5 -----------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _add_if_alpha_compatible2(A, b, n, a0, a1, rhs, ref, cos2):
     """2D version of :func:`_add_if_alpha_compatible` (unknowns s, t)."""
     if n >= 2:
@@ -608,7 +608,7 @@ def _add_from_gradient2(A, b, n, H, c, ref, cos2):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _add_projected_row2(A, b, n, H, c, q0, q1, ref, cos2):
     """Candidate (H q) · (s, t) = -q · c for a unit direction q."""
     return _add_if_alpha_compatible2(A, b, n, H[0, 0] * q0 + H[0, 1] * q1,

@@ -202,7 +202,7 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
     return VALID
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, tick,
                     tri_a, tri_b, tri_c, bnd_a, bnd_b, link):
     """The Lindstrom–Turk profile of edge (a, b): triangles around either end, their
@@ -240,8 +240,9 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, t
                                 _edge_faces(i0, i1, F, vhead, cnext, falive, efaces) == 1:
                             if n_bnd == cap:
                                 return -1, 0, 0
-                            bnd_a[n_bnd] = P[i0]
-                            bnd_b[n_bnd] = P[i1]
+                            for d in range(3):
+                                bnd_a[n_bnd, d] = P[i0, d]
+                                bnd_b[n_bnd, d] = P[i1, d]
                             n_bnd += 1
                     for j in range(3):
                         w = F[f, j]
