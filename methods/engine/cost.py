@@ -9,17 +9,20 @@ from numba import njit
 
 from methods.engine.canny import _walk
 from methods.engine.capacity import over_capacity
-from methods.engine.lindstrom_turk import lt_cost, lt_placement
+from methods.engine.lindstrom_turk import (
+    ALPHA_DEG,
+    BOUNDARY_WEIGHT,
+    SHAPE_WEIGHT,
+    VOLUME_WEIGHT,
+    lt_cost,
+    lt_placement,
+)
 from methods.engine.policy import (
     BOUNDARY_RULE,
     END_FREE,
     END_KEEP_FIRST,
     END_KEEP_SECOND,
     END_SEAM_EDGE,
-    LT_ALPHA_DEG,
-    LT_BOUNDARY_WEIGHT,
-    LT_SHAPE_WEIGHT,
-    LT_VOLUME_WEIGHT,
     PLACE_ENDPOINTS,
     PLACE_MEMORYLESS,
     PLACE_MIDPOINT,
@@ -173,7 +176,7 @@ def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
         out_p[:] = 0.5 * (P[a] + P[b])
     elif placement == PLACE_MEMORYLESS and n_tris > 0:
         q, ok = lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
-                             l2, LT_ALPHA_DEG, LT_VOLUME_WEIGHT, LT_BOUNDARY_WEIGHT)
+                             l2, ALPHA_DEG, VOLUME_WEIGHT, BOUNDARY_WEIGHT)
         if ok and _near_ring(a, b, l2, mesh, q, LT_RING_BOX_MARGIN):
             out_p[:] = q
         else:  # degenerate profile, or a point far off (the placement guard): the
@@ -358,6 +361,6 @@ def _cost_at(p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bn
         cost += w_q * quadric_error(qsum, p)
     if w_lt != 0.0 and n_tris > 0:
         cost += w_lt * lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link,
-                               n_link, l2, LT_VOLUME_WEIGHT, LT_BOUNDARY_WEIGHT,
-                               LT_SHAPE_WEIGHT)
+                               n_link, l2, VOLUME_WEIGHT, BOUNDARY_WEIGHT,
+                               SHAPE_WEIGHT)
     return cost

@@ -103,20 +103,6 @@ BOUNDARY_RULE = np.array([[END_FREE, END_KEEP_SECOND],      # interior, (interio
 _N_REJECTIONS = len(REJECTIONS)
 
 
-# Lindstrom–Turk constants: CGAL's defaults (alpha 1°, volume and boundary weights 0.5,
-# no shape term), which follow the 1998/1999 papers.
-LT_ALPHA_DEG = 1.0
-
-
-LT_VOLUME_WEIGHT = 0.5
-
-
-LT_BOUNDARY_WEIGHT = 0.5
-
-
-LT_SHAPE_WEIGHT = 0.0
-
-
 @dataclass(frozen=True)
 class Policy:
     """How edges are costed and where the kept vertex goes.

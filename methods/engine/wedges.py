@@ -8,8 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from methods.engine.lindstrom_turk import r5_texture_coordinates, texture_kappa
-from methods.engine.policy import LT_ALPHA_DEG
+from methods.engine.lindstrom_turk import ALPHA_DEG, r5_texture_coordinates, texture_kappa
 from methods.engine.state import KIND_STRANDED, KIND_STRANDED_WEDGES, KIND_TWIN
 from methods.engine.topology import _edge_faces, _has_vertex
 
@@ -179,7 +178,7 @@ def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fr
                     n += 1
                 c = cnext[c]
         res, ok = r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n, kappa,
-                                         LT_ALPHA_DEG)
+                                         ALPHA_DEG)
         if n > 0 and ok:
             new_uv[ti, 0] = res[0]
             new_uv[ti, 1] = res[1]
