@@ -155,6 +155,44 @@ def entropy_term(mesh: Mesh, views: int = 20, resolution: int = 256,
                      entropy_background=background)
 
 
+def _corner_normals(mesh: Mesh, cos_limit: float) -> np.ndarray:
+    """(3m, 3) each corner's normal for :func:`rebuild_normals`: the normalised sum of
+    the unit normals of the faces at its position within the angle whose cosine is
+    ``cos_limit`` of its own face's normal (the area-weighted normal of the position
+    where that sum vanishes)."""
+    m = mesh.n_faces
+    w = mesh.welded
+    fn = mesh.face_normals  # unit, zero for degenerate faces
+    corner_vertex = w.faces.reshape(-1).astype(np.int64)  # welded vertex of each corner
+    corner_face = np.repeat(np.arange(m), 3)
+    order = np.argsort(corner_vertex, kind="stable")
+    sv = corner_vertex[order]
+    n = len(order)
+    start = np.searchsorted(sv, sv, side="left")
+    end = np.searchsorted(sv, sv, side="right")
+    own = fn[corner_face[order]]
+    acc = np.zeros((n, 3))
+    widest = int((end - start).max())
+    idx = np.arange(n)
+    for d in range(-widest + 1, widest):  # every pair of corners at one position
+        j = idx + d
+        ok = (j >= start) & (j < end)
+        other = np.zeros((n, 3))
+        other[ok] = fn[corner_face[order[j[ok]]]]
+        close = ok & (np.einsum("ij,ij->i", own, other) >= cos_limit - 1e-12)
+        acc[close] += other[close]
+    length = np.linalg.norm(acc, axis=1)
+    smooth = np.zeros((n, 3))
+    good = length > 0
+    smooth[good] = acc[good] / length[good, None]
+    if not good.all():  # degenerate faces: the area-weighted normal of the position
+        fallback = mesh.replace(normals=None).vertex_normals[mesh.faces.reshape(-1)[order]]
+        smooth[~good] = fallback[~good]
+    normals = np.empty((n, 3))
+    normals[order] = smooth
+    return normals
+
+
 def rebuild_normals(mesh: Mesh, angle: float = NORMALS_ANGLE) -> Mesh:
     """Algorithm 3 of González et al. 2008: per-corner normals smoothed across faces
     that meet at a position at less than ``angle`` degrees.
@@ -184,36 +222,7 @@ def rebuild_normals(mesh: Mesh, angle: float = NORMALS_ANGLE) -> Mesh:
     m = mesh.n_faces
     if m == 0:
         return mesh
-    w = mesh.welded
-    fn = mesh.face_normals  # unit, zero for degenerate faces
-    corner_vertex = w.faces.reshape(-1).astype(np.int64)  # welded vertex of each corner
-    corner_face = np.repeat(np.arange(m), 3)
-    order = np.argsort(corner_vertex, kind="stable")
-    sv = corner_vertex[order]
-    n = len(order)
-    start = np.searchsorted(sv, sv, side="left")
-    end = np.searchsorted(sv, sv, side="right")
-    cos_limit = math.cos(math.radians(angle))
-    own = fn[corner_face[order]]
-    acc = np.zeros((n, 3))
-    widest = int((end - start).max())
-    idx = np.arange(n)
-    for d in range(-widest + 1, widest):  # every pair of corners at one position
-        j = idx + d
-        ok = (j >= start) & (j < end)
-        other = np.zeros((n, 3))
-        other[ok] = fn[corner_face[order[j[ok]]]]
-        close = ok & (np.einsum("ij,ij->i", own, other) >= cos_limit - 1e-12)
-        acc[close] += other[close]
-    length = np.linalg.norm(acc, axis=1)
-    smooth = np.zeros((n, 3))
-    good = length > 0
-    smooth[good] = acc[good] / length[good, None]
-    if not good.all():  # degenerate faces: the area-weighted normal of the position
-        fallback = mesh.replace(normals=None).vertex_normals[mesh.faces.reshape(-1)[order]]
-        smooth[~good] = fallback[~good]
-    normals = np.empty((n, 3))
-    normals[order] = smooth
+    normals = _corner_normals(mesh, math.cos(math.radians(angle)))
     # render vertices: one per (original render vertex, normal)
     wedge = mesh.faces.reshape(-1).astype(np.int64)
     key = np.concatenate([wedge[:, None], np.ascontiguousarray(normals).view(np.int64)],

@@ -292,6 +292,29 @@ def _recorded(value) -> tuple[float | int | None, tuple | None]:
     return (None if math.isnan(scalar) else scalar), per_view
 
 
+def _computed(metrics, original: Mesh, simplified: Mesh, ctx: dict, seconds: dict,
+              errors: dict) -> tuple[dict, dict]:
+    """Each metric's value (after the Metro figures of ``ctx["hausdorff"]``) and per-view
+    values; a metric that raises gets ``errors[name]`` instead, and its time goes to
+    ``seconds`` either way."""
+    values, per_view = dict(ctx["hausdorff"]), {}
+    for name, metric in metrics:
+        t = time.perf_counter()
+        try:
+            value, views = _recorded(metric.compute(original, simplified, ctx))
+        except Exception as exc:  # one broken metric must not lose the job's other figures
+            errors[name] = f"{type(exc).__name__}: {exc}"
+            values.pop(name, None)
+            continue
+        finally:
+            seconds[f"metric:{name}"] = time.perf_counter() - t
+        if value is not None:
+            values[name] = value
+        if views is not None:
+            per_view[name] = list(views)
+    return values, per_view
+
+
 def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
              reference_images: np.ndarray | None = None,
              view_meshes: list[Mesh] | None = None, metrics=None) -> Evaluation:
@@ -345,21 +368,7 @@ def evaluate(original: Mesh, simplified: Mesh, protocol: Protocol = Protocol(),
     ctx = _shared_inputs(needs, original, simplified, protocol, reference_images,
                          view_meshes, seconds)
 
-    values, per_view = dict(ctx["hausdorff"]), {}
-    for name, metric in metrics:
-        t = time.perf_counter()
-        try:
-            value, views = _recorded(metric.compute(original, simplified, ctx))
-        except Exception as exc:  # one broken metric must not lose the job's other figures
-            errors[name] = f"{type(exc).__name__}: {exc}"
-            values.pop(name, None)
-            continue
-        finally:
-            seconds[f"metric:{name}"] = time.perf_counter() - t
-        if value is not None:
-            values[name] = value
-        if views is not None:
-            per_view[name] = list(views)
+    values, per_view = _computed(metrics, original, simplified, ctx, seconds, errors)
     return Evaluation(metrics=values, per_view=per_view,
                       silhouette_histogram=list(map(float, ctx["silhouette"].histogram)),
                       seconds=seconds, images=ctx["simplified_images"], errors=errors,
