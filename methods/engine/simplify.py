@@ -100,12 +100,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
         return result
     start = time.perf_counter()
     prep = _prepare(mesh, policy, image)
-    if policy.canny_weight != 0.0 and (borders is None or mesh.uv is None):
-        raise ValueError("the Canny term needs texture borders and UVs; pass borders= "
-                         "(methods.engine.canny.texture_borders) for a mesh with UVs")
-    if policy.canny_weight != 0.0 and policy.canny_units == "base-cost" and image is not None:
-        raise ValueError("canny_units='base-cost' measures the base cost without "
-                         "rendering; it does not combine with the image term")
+    _check_canny(mesh, policy, borders, image)
     arrays = _quadrics(mesh, policy, prep)
     rules = _rules(mesh, policy, image, prep, target_faces, verify, max_collapses)
     terms = _terms(policy, prep, borders, rules)
@@ -114,20 +109,8 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     if policy.canny_weight != 0.0 and policy.canny_units == "base-cost":
         terms, canny_stats = _canny_units(arrays, rules, terms, images)
     scratch = new_scratch(len(arrays.P))
-    stopped, evaluations, mismatches, rejects, log = _loop(arrays, rules, terms, scratch,
-                                                           images, prep.kinds)
-    stall_collapses = []
-    allowed = rules.max_collapses  # in all: the phases' logs are joined into ``log``
-    for degrees in policy.stall_rotations:  # the stall rule (Policy.stall_rotations)
-        if not stopped or int(log.count[LOG_COLLAPSES]) >= allowed:
-            break
-        rules = rules._replace(cos_limit=math.cos(math.radians(degrees)),
-                               max_collapses=allowed - int(log.count[LOG_COLLAPSES]))
-        stopped, more, mm, rj, rest = _loop(arrays, rules, terms, scratch, images,
-                                            prep.kinds)
-        stall_collapses.append(int(rest.count[LOG_COLLAPSES]))
-        evaluations, mismatches, rejects = evaluations + more, mismatches + mm, rejects + rj
-        log = _joined(log, rest)
+    stopped, evaluations, mismatches, rejects, log, stall_collapses = _phases(
+        arrays, rules, terms, scratch, images, prep.kinds, policy.stall_rotations)
     image_stats = {} if image is None else image.statistics(
         mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
         arrays.vhead, arrays.cnext, arrays.valive, prep.lo, prep.scale)
@@ -136,15 +119,9 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
                                                   arrays.P * prep.scale + prep.lo, prep.P0),
                                    arrays.FW[arrays.falive], arrays.wedge_vertex,
                                    arrays.uv if rules.has_uv else None, tiles)
-    faces = int(arrays.falive.sum())
-    n = int(log.count[LOG_COLLAPSES])
-    reason = None
-    if stopped:
-        counts = ", ".join(f"{name} {int(c)}" for name, c in zip(REJECTIONS, rejects) if c)
-        reason = (f"no valid collapse remains at {faces} faces (target {target_faces}); "
-                  f"candidates rejected: {counts or 'none'}")
-    stats = _statistics(n, evaluations, mismatches, rejects, prep.kinds, verify,
-                        time.perf_counter() - start)
+    reason = _stop_reason(stopped, int(arrays.falive.sum()), target_faces, rejects)
+    stats = _statistics(int(log.count[LOG_COLLAPSES]), evaluations, mismatches, rejects,
+                        prep.kinds, verify, time.perf_counter() - start)
     if policy.stall_rotations:
         stats["stall_collapses"] = stall_collapses
     stats.update(image_stats)
@@ -155,6 +132,48 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     return EngineResult(simplified, reason, stats, out_log, quadrics=Q, vertex_alive=valive,
                         images=(images.img.Y if image is not None
                                 and keeps_luminance(images.img) else None))
+
+
+def _check_canny(mesh: Mesh, policy: Policy, borders, image) -> None:
+    """The Canny term's inputs: texture borders and UVs, and no image term beside its
+    ``base-cost`` units."""
+    if policy.canny_weight != 0.0 and (borders is None or mesh.uv is None):
+        raise ValueError("the Canny term needs texture borders and UVs; pass borders= "
+                         "(methods.engine.canny.texture_borders) for a mesh with UVs")
+    if policy.canny_weight != 0.0 and policy.canny_units == "base-cost" and image is not None:
+        raise ValueError("canny_units='base-cost' measures the base cost without "
+                         "rendering; it does not combine with the image term")
+
+
+def _phases(arrays: MeshArrays, rules: Rules, terms, scratch, images, kinds, rotations):
+    """The loop, then the stall rule (:attr:`Policy.stall_rotations`): while it stops
+    with no valid collapse, the loop again at the next rotation's fold-over limit, with
+    the collapses the run has left. Returns (stopped, evaluations, mismatches, rejects,
+    log (the phases' logs joined), collapses per stall phase)."""
+    stopped, evaluations, mismatches, rejects, log = _loop(arrays, rules, terms, scratch,
+                                                           images, kinds)
+    stall_collapses = []
+    allowed = rules.max_collapses  # in all: the phases' logs are joined into ``log``
+    for degrees in rotations:
+        if not stopped or int(log.count[LOG_COLLAPSES]) >= allowed:
+            break
+        rules = rules._replace(cos_limit=math.cos(math.radians(degrees)),
+                               max_collapses=allowed - int(log.count[LOG_COLLAPSES]))
+        stopped, more, mm, rj, rest = _loop(arrays, rules, terms, scratch, images, kinds)
+        stall_collapses.append(int(rest.count[LOG_COLLAPSES]))
+        evaluations, mismatches, rejects = evaluations + more, mismatches + mm, rejects + rj
+        log = _joined(log, rest)
+    return stopped, evaluations, mismatches, rejects, log, stall_collapses
+
+
+def _stop_reason(stopped, faces: int, target_faces: int, rejects) -> str | None:
+    """Why the run stopped above its target (None when it did not): the faces left and
+    the candidates rejected by each rule."""
+    if not stopped:
+        return None
+    counts = ", ".join(f"{name} {int(c)}" for name, c in zip(REJECTIONS, rejects) if c)
+    return (f"no valid collapse remains at {faces} faces (target {target_faces}); "
+            f"candidates rejected: {counts or 'none'}")
 
 
 def _loop(arrays: MeshArrays, rules: Rules, terms, scratch, images, kinds):
@@ -351,7 +370,7 @@ def _canny_units(arrays: MeshArrays, rules: Rules, terms: Terms, images) -> tupl
         per_area = 1.0 / mean_area
     return terms._replace(canny_per_area=per_area), {
         "canny_base_cost": mean_cost if measured else 0.0,
-        "canny_cost_noise": noise, "canny_edges_costed": int(len(costs))}
+        "canny_cost_noise": noise, "canny_edges_costed": len(costs)}
 
 
 def _image_state(mesh: Mesh, image, a: MeshArrays, prep: _Prepared, texture_quadrics):
