@@ -252,10 +252,9 @@ def _families(jobs: list[Job]) -> Families:
 SETUP_NOTE_AFTER = 10.0
 
 
-def setup_note(procs, after: float | None = None) -> str | None:
+def setup_note(procs, after: float = SETUP_NOTE_AFTER) -> str | None:
     """A line for the progress bar about the first of ``procs`` whose job has been in
-    its set-up for more than ``after`` seconds (:data:`SETUP_NOTE_AFTER`), or None."""
-    after = SETUP_NOTE_AFTER if after is None else after
+    its set-up for more than ``after`` seconds, or None."""
     now = time.monotonic()
     for proc in procs:
         if proc is not None and proc.job is not None and proc.phase == "setup" \
@@ -306,6 +305,7 @@ class LocalPool:
         families = _families(jobs)
         self.slots = [None] * min(self.workers, len(jobs))
         last: list[tuple[str, str] | None] = [None] * len(self.slots)
+        noted = False  # the bar shows a set-up note: cleared once no set-up is long
         while pending or any(p is not None and p.job is not None for p in self.slots):
             for i, proc in enumerate(self.slots):
                 if pending and (proc is None or proc.job is None):
@@ -333,9 +333,11 @@ class LocalPool:
                     continue
                 families.ended(i, left_setup=proc.phase != "setup", failed=result.failed)
                 done(result)
+                noted = False  # the finished job's line has replaced the note
             text = setup_note(self.slots)
-            if text:
-                note(text)
+            if text or noted:
+                note(text or "")
+            noted = bool(text)
 
     def _worker(self, slot: int) -> dict:
         import platform
