@@ -522,17 +522,23 @@ def _footprints(tris, P, m, start, split, own):
             for q in range(first, n):
                 o = fp[q]
                 g = (P[tris[o, 0]] + P[tris[o, 1]] + P[tris[o, 2]]) / 3.0
-                best = 1e300
-                best_t = -1
-                for j in range(c0, c1):
-                    t = own[j]
-                    d = _closest_distance(g, P[tris[t, 0]], P[tris[t, 1]], P[tris[t, 2]])
-                    if d < best:
-                        best = d
-                        best_t = t
+                best_t = _nearest(g, own[c0:c1], tris, P)
                 nxt[o] = head[best_t]
                 head[best_t] = o
     return fp_start, fp[:n].copy()
+
+
+@njit(cache=True)
+def _nearest(g, candidates, tris, P):
+    """The triangle of ``candidates`` nearest to the point ``g`` (the first of equals)."""
+    best = 1e300
+    best_t = -1
+    for t in candidates:
+        d = _closest_distance(g, P[tris[t, 0]], P[tris[t, 1]], P[tris[t, 2]])
+        if d < best:
+            best = d
+            best_t = t
+    return best_t
 
 
 @njit(cache=True)

@@ -43,6 +43,7 @@ replay against the engine's final mesh: the coarsest cut has its positions and U
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -267,21 +268,26 @@ def from_log(mesh: Mesh, log: dict) -> MultiTriangulation:
     P0 = w.positions.astype(np.float64)
     lo = P0.min(axis=0)
     scale = float(np.linalg.norm(P0.max(axis=0) - lo)) or 1.0
-    Pn = (P0 - lo) / scale  # the engine's unit-diagonal coordinates
     has_uv = mesh.uv is not None
-    uv = mesh.uv.astype(np.float64).copy() if has_uv else np.zeros((mesh.n_vertices, 2))
     i64 = np.int64
-    out = _replay(P0.copy(), Pn, w.faces.astype(i64).copy(), mesh.faces.astype(i64).copy(),
-                  uv, w.vertex_of.astype(i64), mesh.positions.astype(np.float64),
-                  log["removed"].astype(i64), log["kept"].astype(i64),
-                  np.ascontiguousarray(log["position"], dtype=np.float64),
-                  log["removed_faces"].astype(i64), log["pair_start"].astype(i64),
-                  np.ascontiguousarray(log["wedge_pairs"], dtype=i64).reshape(-1, 2),
-                  log["wedge_start"].astype(i64), log["wedges"].astype(i64),
-                  np.ascontiguousarray(log["wedge_uv"], dtype=np.float64).reshape(-1, 2),
-                  lo, scale)
-    (positions, uvs, welded, tris, creator, destroyer, c_start, c_list, r_start,
-     r_list) = out
+    given = _Given(
+        Pw=P0.copy(), Pn=(P0 - lo) / scale,  # Pn: the engine's unit-diagonal coordinates
+        F=w.faces.astype(i64).copy(), FW=mesh.faces.astype(i64).copy(),
+        uv=mesh.uv.astype(np.float64).copy() if has_uv else np.zeros((mesh.n_vertices, 2)),
+        wedge_vertex=w.vertex_of.astype(i64), wedge_pos=mesh.positions.astype(np.float64),
+        lo=lo, scale=scale)
+    steps = _Steps(
+        removed=log["removed"].astype(i64), kept=log["kept"].astype(i64),
+        position=np.ascontiguousarray(log["position"], dtype=np.float64),
+        faces=log["removed_faces"].astype(i64), pair_start=log["pair_start"].astype(i64),
+        pairs=np.ascontiguousarray(log["wedge_pairs"], dtype=i64).reshape(-1, 2),
+        wedge_start=log["wedge_start"].astype(i64), wedges=log["wedges"].astype(i64),
+        wedge_uv=np.ascontiguousarray(log["wedge_uv"], dtype=np.float64).reshape(-1, 2))
+    b = _replay(given, steps)
+    n_mv, n_t, n_c, n_r = (int(x) for x in b.n)
+    positions, uvs, welded = b.pos[:n_mv].copy(), b.uv[:n_mv].copy(), b.welded[:n_mv]
+    tris, creator, destroyer = b.tris[:n_t], b.creator[:n_t], b.destroyer[:n_t]
+    c_start, c_list, r_start, r_list = b.c_start, b.created[:n_c], b.r_start, b.removed[:n_r]
     c = len(log["removed"])
     parent_start, parents, child_start, children = _dependencies(creator, destroyer, c)
     delta = (np.diff(r_start) - np.diff(c_start)).astype(np.int32)
@@ -312,11 +318,38 @@ def _dependencies(creator, destroyer, c):
     return parent_start, parents, child_start, children
 
 
+#: The replay's input: the welded mesh the engine simplified (positions ``Pw`` and their
+#: unit-diagonal ``Pn``, faces ``F``; changed by the replay), the render mesh's faces
+#: ``FW`` (wedges; changed), each wedge's ``uv`` (changed), welded vertex
+#: ``wedge_vertex`` (changed) and input position ``wedge_pos``, and the unit frame
+#: (``lo``, ``scale``).
+_Given = namedtuple("_Given", "Pw Pn F FW uv wedge_vertex wedge_pos lo scale")
+#: The engine's collapse log (:attr:`methods.engine.EngineResult.log`) as int64 and
+#: float64 arrays: per collapse the ``removed`` and ``kept`` vertices, the new
+#: ``position``, the two removed ``faces`` (-1: none), the merged wedge ``pairs``
+#: (CSR by ``pair_start``) and the merged vertex's ``wedges`` with their ``wedge_uv``
+#: (CSR by ``wedge_start``).
+_Steps = namedtuple("_Steps", "removed kept position faces pair_start pairs wedge_start "
+                              "wedges wedge_uv")
+#: What the replay keeps between collapses: each vertex's corner list (``vhead``,
+#: ``cnext``; corners 3f + k, dead ones left in), the live faces, each face's MT
+#: triangle and each wedge's MT vertex.
+_Walk = namedtuple("_Walk", "vhead cnext falive face_tri wedge_mv")
+#: The MT as it is built: its vertices (``pos``, ``uv``, ``welded``), its triangles
+#: (``tris`` of MT vertices, ``creator``, ``destroyer``), the triangles each collapse
+#: ``created`` and ``removed`` (CSR by ``c_start`` and ``r_start``), and ``n``: the
+#: counts of vertices, triangles, created and removed (:data:`_N_VERTICES`, ...).
+_Built = namedtuple("_Built", "pos uv welded tris creator destroyer created removed "
+                              "c_start r_start n")
+_N_VERTICES, _N_TRIANGLES, _N_CREATED, _N_REMOVED = 0, 1, 2, 3
+
+
 @njit(cache=True)
 def _grow(a, n):
+    """``a``, or a copy of it at least twice as long, so that index ``n`` is in it."""
     if n < a.shape[0]:
         return a
-    b = np.empty((2 * a.shape[0],) + a.shape[1:], a.dtype)
+    b = np.empty((max(2 * a.shape[0], n + 1),) + a.shape[1:], a.dtype)
     b[:a.shape[0]] = a
     return b
 
@@ -331,159 +364,192 @@ def _mapped(wd, pairs, p0, p1):
 
 
 @njit(cache=True)
-def _replay(Pw, Pn, F, FW, uv, wedge_vertex, wedge_pos, log_removed, log_kept, log_pos,
-            log_faces, pair_start, pairs, wedge_start, wedges, wedge_uv, lo, scale):
-    """Replay the collapse log; returns the MT arrays (see from_log).
+def _replay(given, steps):
+    """Replay the collapse log; returns the MT (:data:`_Built`; see from_log).
 
     Per collapse: the removed faces die; the faces around u (renamed to v) and those
     around v whose v corner changed are replaced by new triangles; a wedge of the
     merged vertex gets a new MT vertex when its position or UV changed, or when it
     was u's."""
-    nv = Pn.shape[0]
-    m = F.shape[0]
-    nw = wedge_pos.shape[0]
-    c = log_removed.shape[0]
-    # vertex -> corner lists (3f + k), dead corners skipped
-    vhead = np.full(nv, -1, np.int64)
+    walk, b = _start(given, steps)
+    star = np.empty(1024, np.int64)
+    fresh = np.zeros(256, np.bool_)
+    pn = np.empty(3)
+    for i in range(steps.removed.shape[0]):
+        u, v = steps.removed[i], steps.kept[i]
+        moved = _moves(given, steps, i, v, pn)
+        star, ns = _star(given.F, walk, u, v, star)
+        fresh = _merge_wedges(given, steps, walk, b, i, u, v, moved, pn, fresh)
+        for s in range(2):  # the removed faces die
+            r = steps.faces[i, s]
+            if r >= 0:
+                walk.falive[r] = False
+                b = _with_room(b)
+                _destroy(b, walk, r, i)
+        for q in range(ns):  # u's faces are renamed; v's are replaced if their v corner changed
+            f = star[q]
+            if walk.falive[f] and _rename(given, steps, walk, b, f, i, u, v):
+                b = _with_room(b)
+                _destroy(b, walk, f, i)
+                _create(b, walk, given.FW, f, i)
+        _splice(walk, u, v)
+        b.c_start[i + 1] = b.n[_N_CREATED]
+        b.r_start[i + 1] = b.n[_N_REMOVED]
+    return b
+
+
+@njit(cache=True)
+def _start(given, steps):
+    """The walk and the MT before the first collapse: the input's wedges and faces."""
+    m, nw, c = given.F.shape[0], given.wedge_pos.shape[0], steps.removed.shape[0]
+    vhead = np.full(given.Pn.shape[0], -1, np.int64)
     cnext = np.full(3 * m, -1, np.int64)
     for corner in range(3 * m - 1, -1, -1):
-        x = F[corner // 3, corner % 3]
+        x = given.F[corner // 3, corner % 3]
         cnext[corner] = vhead[x]
         vhead[x] = corner
-    falive = np.ones(m, np.bool_)
-    # MT vertices: the input's wedges first
-    mv_pos = np.empty((nw + 8 * c + 16, 3))
-    mv_uv = np.empty((nw + 8 * c + 16, 2))
-    mv_welded = np.empty(nw + 8 * c + 16, np.int64)
-    for x in range(nw):
-        mv_pos[x] = wedge_pos[x]
-        mv_uv[x] = uv[x]
-        mv_welded[x] = wedge_vertex[x]
-    n_mv = nw
-    wedge_mv = np.arange(nw)
-    # MT triangles: the input's faces first
+    walk = _Walk(vhead, cnext, np.ones(m, np.bool_), np.arange(m), np.arange(nw))
+    # every wedge of a collapse adds at most one MT vertex
+    n_vertices = nw + steps.wedges.shape[0]
+    pos, uv = np.empty((n_vertices, 3)), np.empty((n_vertices, 2))
+    welded = np.empty(n_vertices, np.int64)
+    pos[:nw] = given.wedge_pos
+    uv[:nw] = given.uv
+    welded[:nw] = given.wedge_vertex
     tris = np.empty((m + 8 * c + 16, 3), np.int64)
-    creator = np.full(m + 8 * c + 16, -1, np.int64)
-    destroyer = np.full(m + 8 * c + 16, -1, np.int64)
-    for f in range(m):
-        for k in range(3):
-            tris[f, k] = FW[f, k]
-    n_t = m
-    face_tri = np.arange(m)
-    c_start = np.zeros(c + 1, np.int64)
-    r_start = np.zeros(c + 1, np.int64)
-    c_list = np.empty(8 * c + 16, np.int64)
-    r_list = np.empty(8 * c + 16, np.int64)
-    n_c = 0
-    n_r = 0
-    fresh = np.zeros(256, np.bool_)
-    star = np.empty(1024, np.int64)
-    pn = np.empty(3)
-    for i in range(c):
-        u = log_removed[i]
-        v = log_kept[i]
-        p0, p1 = pair_start[i], pair_start[i + 1]
-        w0, w1 = wedge_start[i], wedge_start[i + 1]
-        for k in range(3):
-            pn[k] = (log_pos[i, k] - lo[k]) / scale
-        moved = False
-        for k in range(3):
-            if abs(pn[k] - Pn[v, k]) > _MOVE_TOLERANCE:
-                moved = True
-        # the star of u and v (alive faces, each once)
-        ns = 0
-        for side in range(2):
-            x = u if side == 0 else v
-            corner = vhead[x]
-            while corner != -1:
-                f = corner // 3
-                if falive[f] and (side == 0 or (F[f, 0] != u and F[f, 1] != u
-                                                and F[f, 2] != u)):
-                    star = _grow(star, ns)
-                    star[ns] = f
-                    ns += 1
-                corner = cnext[corner]
-        # the merged vertex's wedges take their logged UVs
-        fresh = _grow(fresh, w1 - w0)
-        for q in range(w1 - w0):
-            wd = wedges[w0 + q]
-            fresh[q] = (moved or wedge_vertex[wd] == u or wedge_uv[w0 + q, 0] != uv[wd, 0]
-                        or wedge_uv[w0 + q, 1] != uv[wd, 1])
-            uv[wd, 0] = wedge_uv[w0 + q, 0]
-            uv[wd, 1] = wedge_uv[w0 + q, 1]
-        if moved:
-            for k in range(3):
-                Pn[v, k] = pn[k]
-                Pw[v, k] = log_pos[i, k]
-        # new MT vertices for the wedges that changed
-        for q in range(w1 - w0):
-            wd = wedges[w0 + q]
-            wedge_vertex[wd] = v
-            if fresh[q]:
-                mv_pos = _grow(mv_pos, n_mv)
-                mv_uv = _grow(mv_uv, n_mv)
-                mv_welded = _grow(mv_welded, n_mv)
-                mv_pos[n_mv] = Pw[v]
-                mv_uv[n_mv] = uv[wd]
-                mv_welded[n_mv] = v
-                wedge_mv[wd] = n_mv
-                n_mv += 1
-        # the removed faces die
-        for s in range(2):
-            r = log_faces[i, s]
-            if r < 0:
-                continue
-            falive[r] = False
-            destroyer[face_tri[r]] = i
-            r_list = _grow(r_list, n_r)
-            r_list[n_r] = face_tri[r]
-            n_r += 1
-        # u's faces are renamed; v's faces are replaced when their v corner changed
-        for q in range(ns):
-            f = star[q]
-            if not falive[f]:
-                continue
-            replace = False
-            for k in range(3):
-                if F[f, k] == u or F[f, k] == v:
-                    wd = _mapped(FW[f, k], pairs, p0, p1)
-                    if F[f, k] == u or wedge_mv[wd] != tris[face_tri[f], k]:
-                        replace = True
-                    F[f, k] = v
-                    FW[f, k] = wd
-            if not replace:
-                continue
-            destroyer[face_tri[f]] = i
-            r_list = _grow(r_list, n_r)
-            r_list[n_r] = face_tri[f]
-            n_r += 1
-            tris = _grow(tris, n_t)
-            creator = _grow(creator, n_t)
-            destroyer = _grow(destroyer, n_t)
-            for k in range(3):
-                tris[n_t, k] = wedge_mv[FW[f, k]]
-            creator[n_t] = i
-            destroyer[n_t] = -1
-            face_tri[f] = n_t
-            c_list = _grow(c_list, n_c)
-            c_list[n_c] = n_t
-            n_c += 1
-            n_t += 1
-        # u's corners join v's list
-        corner = vhead[u]
-        last = -1
+    tris[:m] = given.FW
+    b = _Built(pos, uv, welded, tris, np.full(m + 8 * c + 16, -1, np.int64),
+               np.full(m + 8 * c + 16, -1, np.int64), np.empty(8 * c + 16, np.int64),
+               np.empty(8 * c + 16, np.int64), np.zeros(c + 1, np.int64),
+               np.zeros(c + 1, np.int64), np.array([nw, m, 0, 0], np.int64))
+    return walk, b
+
+
+@njit(cache=True)
+def _moves(given, steps, i, v, pn):
+    """Whether collapse ``i`` moves the kept vertex ``v``; its new unit-diagonal
+    position goes into ``pn``."""
+    for k in range(3):
+        pn[k] = (steps.position[i, k] - given.lo[k]) / given.scale
+    moved = False
+    for k in range(3):
+        if abs(pn[k] - given.Pn[v, k]) > _MOVE_TOLERANCE:
+            moved = True
+    return moved
+
+
+@njit(cache=True)
+def _star(F, walk, u, v, star):
+    """The live faces around u, then those around v without u, each once, in ``star``
+    (grown when full); returns (star, their count)."""
+    ns = 0
+    for side in range(2):
+        x = u if side == 0 else v
+        corner = walk.vhead[x]
         while corner != -1:
-            last = corner
-            corner = cnext[corner]
-        if last != -1:
-            cnext[last] = vhead[v]
-            vhead[v] = vhead[u]
-        vhead[u] = -1
-        c_start[i + 1] = n_c
-        r_start[i + 1] = n_r
-    return (mv_pos[:n_mv].copy(), mv_uv[:n_mv].copy(), mv_welded[:n_mv].copy(),
-            tris[:n_t].copy(), creator[:n_t].copy(), destroyer[:n_t].copy(), c_start,
-            c_list[:n_c].copy(), r_start, r_list[:n_r].copy())
+            f = corner // 3
+            if walk.falive[f] and (side == 0 or (F[f, 0] != u and F[f, 1] != u
+                                                 and F[f, 2] != u)):
+                star = _grow(star, ns)
+                star[ns] = f
+                ns += 1
+            corner = walk.cnext[corner]
+    return star, ns
+
+
+@njit(cache=True)
+def _merge_wedges(given, steps, walk, b, i, u, v, moved, pn, fresh):
+    """Collapse ``i``'s merged vertex v: its wedges take their logged UVs and v its new
+    position; a wedge whose position or UV changed, or that was u's, gets a new MT
+    vertex. Returns ``fresh`` (scratch, grown when short)."""
+    w0, w1 = steps.wedge_start[i], steps.wedge_start[i + 1]
+    fresh = _grow(fresh, w1 - w0)
+    for q in range(w1 - w0):
+        wd = steps.wedges[w0 + q]
+        fresh[q] = (moved or given.wedge_vertex[wd] == u
+                    or steps.wedge_uv[w0 + q, 0] != given.uv[wd, 0]
+                    or steps.wedge_uv[w0 + q, 1] != given.uv[wd, 1])
+        given.uv[wd, 0] = steps.wedge_uv[w0 + q, 0]
+        given.uv[wd, 1] = steps.wedge_uv[w0 + q, 1]
+    if moved:
+        for k in range(3):
+            given.Pn[v, k] = pn[k]
+            given.Pw[v, k] = steps.position[i, k]
+    for q in range(w1 - w0):
+        wd = steps.wedges[w0 + q]
+        given.wedge_vertex[wd] = v
+        if fresh[q]:
+            x = b.n[_N_VERTICES]
+            b.pos[x] = given.Pw[v]
+            b.uv[x] = given.uv[wd]
+            b.welded[x] = v
+            walk.wedge_mv[wd] = x
+            b.n[_N_VERTICES] = x + 1
+    return fresh
+
+
+@njit(cache=True)
+def _rename(given, steps, walk, b, f, i, u, v):
+    """Face ``f``'s corners at u or v become v's, with collapse ``i``'s merged wedges;
+    returns whether its MT triangle must be replaced (a corner was u's, or v's corner
+    now has another MT vertex)."""
+    p0, p1 = steps.pair_start[i], steps.pair_start[i + 1]
+    replace = False
+    for k in range(3):
+        x = given.F[f, k]
+        if x == u or x == v:
+            wd = _mapped(given.FW[f, k], steps.pairs, p0, p1)
+            if x == u or walk.wedge_mv[wd] != b.tris[walk.face_tri[f], k]:
+                replace = True
+            given.F[f, k] = v
+            given.FW[f, k] = wd
+    return replace
+
+
+@njit(cache=True)
+def _with_room(b):
+    """``b`` with room for one more triangle and one more created and removed."""
+    nt = b.n[_N_TRIANGLES]
+    return _Built(b.pos, b.uv, b.welded, _grow(b.tris, nt), _grow(b.creator, nt),
+                  _grow(b.destroyer, nt), _grow(b.created, b.n[_N_CREATED]),
+                  _grow(b.removed, b.n[_N_REMOVED]), b.c_start, b.r_start, b.n)
+
+
+@njit(cache=True)
+def _destroy(b, walk, f, i):
+    """Face ``f``'s MT triangle is removed by collapse ``i``."""
+    t = walk.face_tri[f]
+    b.destroyer[t] = i
+    b.removed[b.n[_N_REMOVED]] = t
+    b.n[_N_REMOVED] += 1
+
+
+@njit(cache=True)
+def _create(b, walk, FW, f, i):
+    """Collapse ``i`` creates a new MT triangle for face ``f``."""
+    t = b.n[_N_TRIANGLES]
+    for k in range(3):
+        b.tris[t, k] = walk.wedge_mv[FW[f, k]]
+    b.creator[t] = i
+    b.destroyer[t] = -1
+    walk.face_tri[f] = t
+    b.created[b.n[_N_CREATED]] = t
+    b.n[_N_CREATED] += 1
+    b.n[_N_TRIANGLES] = t + 1
+
+
+@njit(cache=True)
+def _splice(walk, u, v):
+    """u's corners join v's list (in front of them)."""
+    corner = walk.vhead[u]
+    last = -1
+    while corner != -1:
+        last = corner
+        corner = walk.cnext[corner]
+    if last != -1:
+        walk.cnext[last] = walk.vhead[v]
+        walk.vhead[v] = walk.vhead[u]
+    walk.vhead[u] = -1
 
 
 # -- cut operations (numba) ------------------------------------------------------------------

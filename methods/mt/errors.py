@@ -30,6 +30,7 @@ Gouraud shading with specular highlights, nested bounds gave d_rms 12.72 and FLI
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -52,92 +53,125 @@ AMBIENT, DIFFUSE, SPECULAR, SHININESS = (DEFAULT_CONSTANTS.ambient, DEFAULT_CONS
                                        DEFAULT_CONSTANTS.specular, DEFAULT_CONSTANTS.shininess)
 
 
+#: A node's bounds as :func:`_node_errors` reads them (methods.mt.bounds.NodeBounds):
+#: sphere ``center`` and ``radius``, silhouette cone (``sax``, ``sang``), shading cone
+#: (``hax``, ``hang``), luminance range ``lum`` and texture deviation ``dev``.
+_Nodes = namedtuple("_Nodes", "center radius sax sang hax hang lum dev")
+#: One view: ``eye``, its unit frame (``forward``, ``right``, ``up``), the tangent of
+#: half the vertical field of view, the near and far planes and the image height in
+#: pixels.
+_View = namedtuple("_View", "eye forward right up tan_half near far resolution")
+#: What an error is: ``mode`` (a value of :data:`ERRORS`), ``lighting`` (of
+#: :data:`LIGHTINGS`), the specular weight ``ks``, the silhouette factor, the observer's
+#: ``ppd`` and contrast sensitivity (``c_lo``, ``c_hi``, ``inv_table``), and the
+#: ablation switches (:func:`node_errors`): ``sil_contrast`` gives silhouette nodes
+#: maximal contrast, ``lit_contrast`` bounds the contrast under ``lighting`` (else the
+#: intrinsic luminance range alone), ``sphere_extent`` takes the feature size from the
+#: bounding sphere (else twice the texture deviation).
+_Measure = namedtuple("_Measure", "mode lighting ks sil_factor ppd c_lo c_hi inv_table "
+                                  "sil_contrast lit_contrast sphere_extent")
+
+
 @njit(cache=True)
-def _node_errors(center, radius, sax, sang, hax, hang, lum, dev, eye, forward, right, up,
-                 tan_half, near, far, resolution, ppd, mode, lighting, ks, sil_factor,
-                 c_lo, c_hi, inv_table, sil_contrast, lit_contrast, sphere_extent, out, status):
+def _node_errors(nodes, view, measure, out, status):
     """Error of every node from one view into ``out``; ``status`` gets 0 invisible,
-    1 front-facing, 2 silhouette. The ablation switches (:func:`node_errors`):
-    ``sil_contrast`` gives silhouette nodes maximal contrast, ``lit_contrast`` bounds
-    the contrast under ``lighting`` (else the intrinsic luminance range alone),
-    ``sphere_extent`` takes the feature size from the bounding sphere (else twice the
-    texture deviation)."""
-    c = center.shape[0]
+    1 front-facing, 2 silhouette."""
+    tan_half = view.tan_half
     norm_side = 1.0 / math.sqrt(1.0 + tan_half * tan_half)
-    px_per_unit = 0.5 * resolution / tan_half  # pixels per unit length at distance 1
-    for i in range(c):
-        if mode == 0:
-            out[i] = dev[i]
+    px_per_unit = 0.5 * view.resolution / tan_half  # pixels per unit length at distance 1
+    for i in range(nodes.center.shape[0]):
+        if measure.mode == 0:
+            out[i] = nodes.dev[i]
             status[i] = 1
             continue
-        dx = center[i, 0] - eye[0]
-        dy = center[i, 1] - eye[1]
-        dz = center[i, 2] - eye[2]
-        r = radius[i]
-        z = dx * forward[0] + dy * forward[1] + dz * forward[2]
-        x = dx * right[0] + dy * right[1] + dz * right[2]
-        y = dx * up[0] + dy * up[1] + dz * up[2]
-        # frustum: sphere beyond the near/far planes or a side plane
-        visible = z + r >= near and z - r <= far
-        if visible:
-            for sx, sy in ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)):
-                dist_plane = (tan_half * z - sx * x - sy * y) * norm_side
-                if dist_plane < -r:
-                    visible = False
-        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-        # silhouette cone test (Luebke & Erikson 1997)
-        kind = 2
-        alpha = math.pi / 2 if dist <= r else math.asin(r / dist)
-        if dist > 0.0:
-            cos_psi = -(sax[i, 0] * dx + sax[i, 1] * dy + sax[i, 2] * dz) / dist
-            psi = math.acos(max(-1.0, min(1.0, cos_psi)))
-            if psi + sang[i] + alpha < 0.5 * math.pi:
-                kind = 1
-            elif psi - sang[i] - alpha > 0.5 * math.pi:
-                visible = False
-        if not visible:
-            out[i] = 0.0
-            status[i] = 0
-            continue
+        kind, dx, dy, dz, dist, alpha = _seen(nodes, view, norm_side, i)
         status[i] = kind
-        dmin = max(dist - r, near)
+        if kind == 0:
+            out[i] = 0.0
+            continue
+        dmin = max(dist - nodes.radius[i], view.near)
         scale = px_per_unit / dmin  # pixels per unit length at the sphere's nearest point
-        if mode == 1 or mode == 2:
-            e = dev[i] * scale
-            if mode == 2 and kind == 2:
-                e *= sil_factor
+        if measure.mode == 1 or measure.mode == 2:
+            e = nodes.dev[i] * scale
+            if measure.mode == 2 and kind == 2:
+                e *= measure.sil_factor
             out[i] = e
             continue
         # perceptual: contrast (§3.3, §5.2, §5.4)
-        if kind == 2 and sil_contrast:
+        if kind == 2 and measure.sil_contrast:
             contrast = 1.0
         else:
-            tmin, tmax = lum[i, 0], lum[i, 1]
-            if lighting == 0 or not lit_contrast:
-                lmin, lmax = tmin, tmax
-            else:
-                if lighting == 1:
-                    ax0, ax1, ax2, half = sax[i, 0], sax[i, 1], sax[i, 2], sang[i]
-                else:
-                    ax0, ax1, ax2, half = hax[i, 0], hax[i, 1], hax[i, 2], hang[i]
-                cos_b = -(ax0 * dx + ax1 * dy + ax2 * dz) / dist
-                beta = math.acos(max(-1.0, min(1.0, cos_b)))
-                nl_max = max(0.0, math.cos(max(0.0, beta - half - alpha)))
-                nl_min = max(0.0, math.cos(min(math.pi, beta + half + alpha)))
-                lmin = tmin * (AMBIENT + DIFFUSE * nl_min) + ks * nl_min ** SHININESS
-                lmax = tmax * (AMBIENT + DIFFUSE * nl_max) + ks * nl_max ** SHININESS
-                lmin = min(1.0, lmin)
-                lmax = min(1.0, lmax)
-            contrast = 0.0 if lmax + lmin <= 0.0 else (lmax - lmin) / (lmax + lmin)
+            contrast = _contrast(nodes, measure, i, dx, dy, dz, dist, alpha)
         # worst-case frequency from the feature's extent (§3.2, §5.4)
-        if sphere_extent:
-            extent_px = 2.0 * r * scale
+        if measure.sphere_extent:
+            extent_px = 2.0 * nodes.radius[i] * scale
         else:
-            extent_px = 2.0 * dev[i] * scale
-        f_vis = visible_frequency_kernel(contrast, c_lo, c_hi, inv_table)
+            extent_px = 2.0 * nodes.dev[i] * scale
+        f_vis = visible_frequency_kernel(contrast, measure.c_lo, measure.c_hi,
+                                         measure.inv_table)
         # imperceptibility distance in viewing distances: f_vis * 2 * extent in degrees
-        out[i] = f_vis * 2.0 * extent_px / ppd
+        out[i] = f_vis * 2.0 * extent_px / measure.ppd
     return out
+
+
+@njit(cache=True)
+def _seen(nodes, view, norm_side, i):
+    """How node ``i`` is seen: (0 invisible, 1 front-facing or 2 silhouette, its
+    sphere's centre from the eye (dx, dy, dz), the distance, the sphere's angular
+    radius)."""
+    eye, forward, right, up = view.eye, view.forward, view.right, view.up
+    dx = nodes.center[i, 0] - eye[0]
+    dy = nodes.center[i, 1] - eye[1]
+    dz = nodes.center[i, 2] - eye[2]
+    r = nodes.radius[i]
+    z = dx * forward[0] + dy * forward[1] + dz * forward[2]
+    x = dx * right[0] + dy * right[1] + dz * right[2]
+    y = dx * up[0] + dy * up[1] + dz * up[2]
+    # frustum: sphere beyond the near/far planes or a side plane
+    visible = z + r >= view.near and z - r <= view.far
+    if visible:
+        for sx, sy in ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)):
+            dist_plane = (view.tan_half * z - sx * x - sy * y) * norm_side
+            if dist_plane < -r:
+                visible = False
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    # silhouette cone test (Luebke & Erikson 1997)
+    kind = 2
+    alpha = math.pi / 2 if dist <= r else math.asin(r / dist)
+    if dist > 0.0:
+        sax = nodes.sax
+        cos_psi = -(sax[i, 0] * dx + sax[i, 1] * dy + sax[i, 2] * dz) / dist
+        psi = math.acos(max(-1.0, min(1.0, cos_psi)))
+        if psi + nodes.sang[i] + alpha < 0.5 * math.pi:
+            kind = 1
+        elif psi - nodes.sang[i] - alpha > 0.5 * math.pi:
+            visible = False
+    return (kind if visible else 0), dx, dy, dz, dist, alpha
+
+
+@njit(cache=True)
+def _contrast(nodes, measure, i, dx, dy, dz, dist, alpha):
+    """Node ``i``'s contrast (§3.3, §5.2, §5.4): its luminance range, bounded under the
+    lighting over its shading cone (the silhouette cone under flat shading) as seen
+    from (dx, dy, dz) away at ``dist``, with the sphere's angular radius ``alpha``."""
+    tmin, tmax = nodes.lum[i, 0], nodes.lum[i, 1]
+    if measure.lighting == 0 or not measure.lit_contrast:
+        lmin, lmax = tmin, tmax
+    else:
+        if measure.lighting == 1:
+            ax, half = nodes.sax, nodes.sang[i]
+        else:
+            ax, half = nodes.hax, nodes.hang[i]
+        cos_b = -(ax[i, 0] * dx + ax[i, 1] * dy + ax[i, 2] * dz) / dist
+        beta = math.acos(max(-1.0, min(1.0, cos_b)))
+        nl_max = max(0.0, math.cos(max(0.0, beta - half - alpha)))
+        nl_min = max(0.0, math.cos(min(math.pi, beta + half + alpha)))
+        ks = measure.ks
+        lmin = tmin * (AMBIENT + DIFFUSE * nl_min) + ks * nl_min ** SHININESS
+        lmax = tmax * (AMBIENT + DIFFUSE * nl_max) + ks * nl_max ** SHININESS
+        lmin = min(1.0, lmin)
+        lmax = min(1.0, lmax)
+    return 0.0 if lmax + lmin <= 0.0 else (lmax - lmin) / (lmax + lmin)
 
 
 @njit(cache=True)
@@ -191,6 +225,35 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
         0 invisible (culled or back-facing), 1 front-facing, 2 silhouette: each node's
         own test.
     """
+    _check_error_options(error, lighting, ppd, feature_size)
+    sphere_extent = lighting != "none" if feature_size == "auto" else feature_size == "sphere"
+    c_lo, c_hi, table = (csf or ContrastSensitivity()).tables()
+    view = _view(camera, resolution)
+    measure = _Measure(ERRORS[error], LIGHTINGS[lighting], SPECULAR if specular else 0.0,
+                       float(silhouette_factor), float(ppd), c_lo, c_hi, table,
+                       bool(silhouette_contrast), bool(lighting_contrast), bool(sphere_extent))
+    b = bounds
+    nodes = _Nodes(b.center, b.radius, b.silhouette_axis, b.silhouette_angle, b.shading_axis,
+                   b.shading_angle, b.luminance, b.deviation)
+    out, status = np.empty(len(b.radius)), np.empty(len(b.radius), np.int8)
+    _node_errors(nodes, view, measure, out, status)
+    if subtree_max:
+        _children_max(out, bounds.child_start, bounds.children)
+    return out, status
+
+
+def _view(camera, resolution: int):
+    """``camera`` (metrics.views.Camera) as :data:`_View`, ``resolution`` pixels high."""
+    forward = camera.direction
+    right = np.cross(forward, camera.up)
+    right /= np.linalg.norm(right)
+    return _View(np.asarray(camera.eye, np.float64), forward, right, np.cross(right, forward),
+                 math.tan(math.radians(camera.fov_y_deg) / 2), float(camera.near),
+                 float(camera.far), float(resolution))
+
+
+def _check_error_options(error: str, lighting: str, ppd: float, feature_size: str) -> None:
+    """:func:`node_errors`' options, each a one-line error naming what is allowed."""
     if error not in ERRORS:
         raise ValueError(f"error must be one of {', '.join(ERRORS)}, got {error!r}")
     if lighting not in LIGHTINGS:
@@ -200,25 +263,3 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
     if feature_size not in FEATURE_SIZES:
         raise ValueError(f"feature_size must be one of {', '.join(FEATURE_SIZES)}, "
                          f"got {feature_size!r}")
-    sphere_extent = (lighting != "none") if feature_size == "auto" else \
-        feature_size == "sphere"
-    csf = csf or ContrastSensitivity()
-    c_lo, c_hi, table = csf.tables()
-    forward = camera.direction
-    right = np.cross(forward, camera.up)
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    tan_half = math.tan(math.radians(camera.fov_y_deg) / 2)
-    n = len(bounds.radius)
-    out = np.empty(n)
-    status = np.empty(n, np.int8)
-    _node_errors(bounds.center, bounds.radius, bounds.silhouette_axis, bounds.silhouette_angle,
-                 bounds.shading_axis, bounds.shading_angle, bounds.luminance, bounds.deviation,
-                 np.asarray(camera.eye, np.float64), forward, right, up, tan_half,
-                 float(camera.near), float(camera.far), float(resolution), float(ppd),
-                 ERRORS[error], LIGHTINGS[lighting], SPECULAR if specular else 0.0,
-                 float(silhouette_factor), c_lo, c_hi, table, bool(silhouette_contrast),
-                 bool(lighting_contrast), bool(sphere_extent), out, status)
-    if subtree_max:
-        _children_max(out, bounds.child_start, bounds.children)
-    return out, status

@@ -14,6 +14,7 @@ taken in whatever order the heaps hold them, and the cut would depend on the sta
 from __future__ import annotations
 
 import time
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -82,35 +83,102 @@ def _heap_pop(keys, vals, n, ties):
     return top, n
 
 
+#: The MT's arcs as :func:`_refine` reads them: each node's ``delta`` (faces added
+#: when it is refined) and its parents and children (CSR lists).
+_Arcs = namedtuple("_Arcs", "delta parent_start parents child_start children")
+#: A cut (methods.mt.dag.Cut): ``applied`` per node and, per node, its applied parents
+#: and refined children (``n_ap``, ``n_rc``), all changed in place.
+_CutArrays = namedtuple("_CutArrays", "applied n_ap n_rc")
+
+
 @njit(cache=True)
-def _lower_one(i, err, applied, delta, parent_start, parents, child_start, children, n_ap,
-               n_rc, rk, rv, nr, lk, lv, nl):
-    """Apply frontier node i; it joins R, parents that became lowerable join L."""
-    _set_applied(i, applied, parent_start, parents, child_start, children, n_ap, n_rc)
+def _lower_one(i, err, arcs, cut, heaps):
+    """Apply frontier node i; it joins R, parents that became lowerable join L.
+    ``heaps`` is (R's keys, values, size, L's keys, values, size); returns it updated."""
+    rk, rv, nr, lk, lv, nl = heaps
+    _set_applied(i, cut.applied, arcs.parent_start, arcs.parents, arcs.child_start,
+                 arcs.children, cut.n_ap, cut.n_rc)
     rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i, _R_TIES)
-    for j in range(parent_start[i], parent_start[i + 1]):
-        p = parents[j]
-        if n_rc[p] == 0:
+    for j in range(arcs.parent_start[i], arcs.parent_start[i + 1]):
+        p = arcs.parents[j]
+        if cut.n_rc[p] == 0:
             lk, lv, nl = _heap_push(lk, lv, nl, err[p], p, _L_TIES)
     return rk, rv, nr, lk, lv, nl
 
 
 @njit(cache=True)
-def _raise_one(i, err, applied, delta, parent_start, parents, child_start, children, n_ap,
-               n_rc, rk, rv, nr, lk, lv, nl):
-    """Refine frontier node i; it joins L, children that became raisable join R."""
-    _set_refined(i, applied, parent_start, parents, child_start, children, n_ap, n_rc)
+def _raise_one(i, err, arcs, cut, heaps):
+    """Refine frontier node i; it joins L, children that became raisable join R
+    (``heaps`` as in :func:`_lower_one`)."""
+    rk, rv, nr, lk, lv, nl = heaps
+    _set_refined(i, cut.applied, arcs.parent_start, arcs.parents, arcs.child_start,
+                 arcs.children, cut.n_ap, cut.n_rc)
     lk, lv, nl = _heap_push(lk, lv, nl, err[i], i, _L_TIES)
-    for j in range(child_start[i], child_start[i + 1]):
-        ch = children[j]
-        if n_ap[ch] == 0:
+    for j in range(arcs.child_start[i], arcs.child_start[i + 1]):
+        ch = arcs.children[j]
+        if cut.n_ap[ch] == 0:
             rk, rv, nr = _heap_push(rk, rv, nr, -err[ch], ch, _R_TIES)
     return rk, rv, nr, lk, lv, nl
 
 
 @njit(cache=True)
-def _refine(budget, err, applied, n_faces, delta, parent_start, parents, child_start,
-            children, n_ap, n_rc):
+def _frontier(err, cut):
+    """R and L rebuilt from the cut's frontier (``heaps`` as in :func:`_lower_one`)."""
+    c = cut.applied.shape[0]
+    rk = np.empty(c + 16)
+    rv = np.empty(c + 16, np.int64)
+    lk = np.empty(c + 16)
+    lv = np.empty(c + 16, np.int64)
+    nr = 0
+    nl = 0
+    for i in range(c):
+        if cut.applied[i] and cut.n_ap[i] == 0:
+            rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i, _R_TIES)
+        elif not cut.applied[i] and cut.n_rc[i] == 0:
+            lk, lv, nl = _heap_push(lk, lv, nl, err[i], i, _L_TIES)
+    return rk, rv, nr, lk, lv, nl
+
+
+@njit(cache=True)
+def _lowering(budget, n_faces, err, arcs, cut, heaps):
+    """A lowering phase: apply L's nodes while over ``budget`` and L has one. Returns
+    (faces, nodes lowered, the last one or -1, heaps)."""
+    lowered = 0
+    last = -1
+    while n_faces > budget and heaps[5] > 0:
+        rk, rv, nr, lk, lv, nl = heaps
+        i, nl = _heap_pop(lk, lv, nl, _L_TIES)
+        heaps = (rk, rv, nr, lk, lv, nl)
+        if cut.applied[i] or cut.n_rc[i] != 0:
+            continue  # stale
+        heaps = _lower_one(i, err, arcs, cut, heaps)
+        n_faces -= arcs.delta[i]
+        lowered += 1
+        last = i
+    return n_faces, lowered, last, heaps
+
+
+@njit(cache=True)
+def _raising(budget, n_faces, err, arcs, cut, heaps):
+    """A raising phase: refine R's nodes while within ``budget`` and R has one.
+    Returns (faces, nodes raised, the last one or -1, heaps)."""
+    raised = 0
+    last = -1
+    while n_faces <= budget and heaps[2] > 0:
+        rk, rv, nr, lk, lv, nl = heaps
+        i, nr = _heap_pop(rk, rv, nr, _R_TIES)
+        heaps = (rk, rv, nr, lk, lv, nl)
+        if not cut.applied[i] or cut.n_ap[i] != 0:
+            continue  # stale
+        heaps = _raise_one(i, err, arcs, cut, heaps)
+        n_faces += arcs.delta[i]
+        raised += 1
+        last = i
+    return n_faces, raised, last, heaps
+
+
+@njit(cache=True)
+def _refine(budget, err, n_faces, arcs, cut):
     """simplifyBudget of §5.1 on the cut ``applied``; returns (faces, raised, lowered).
 
     R holds applied nodes whose parents are all refined (candidates to raise), keyed
@@ -134,60 +202,24 @@ def _refine(budget, err, applied, n_faces, delta, parent_start, parents, child_s
     top-ranked nodes that fits the budget, the same from any start. If it stops short
     of x, every applied node ranks below x, so the next raising phase ends below x:
     at most one round per node."""
-    c = applied.shape[0]
-    rk = np.empty(c + 16)
-    rv = np.empty(c + 16, np.int64)
-    lk = np.empty(c + 16)
-    lv = np.empty(c + 16, np.int64)
-    nr = 0
-    nl = 0
-    for i in range(c):
-        if applied[i] and n_ap[i] == 0:
-            rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i, _R_TIES)
-        elif not applied[i] and n_rc[i] == 0:
-            lk, lv, nl = _heap_push(lk, lv, nl, err[i], i, _L_TIES)
+    heaps = _frontier(err, cut)
     last_raised = -1
     raised = 0
     lowered = 0
     # Each round ends on a lower-ranked node than the last (see above), so the loop
     # ends; the cap guards against errors that are not monotone (or NaN).
-    for _ in range(4 * c + 16):
-        last_dropped = -1
-        while n_faces > budget and nl > 0:
-            i, nl = _heap_pop(lk, lv, nl, _L_TIES)
-            if applied[i] or n_rc[i] != 0:
-                continue  # stale
-            rk, rv, nr, lk, lv, nl = _lower_one(i, err, applied, delta, parent_start, parents,
-                                                child_start, children, n_ap, n_rc, rk, rv, nr,
-                                                lk, lv, nl)
-            n_faces -= delta[i]
-            lowered += 1
-            last_dropped = i
+    for _ in range(4 * cut.applied.shape[0] + 16):
+        n_faces, k, last_dropped, heaps = _lowering(budget, n_faces, err, arcs, cut, heaps)
+        lowered += k
         if last_raised != -1 and last_dropped == last_raised:
             break
-        last_raised = -1
-        while n_faces <= budget and nr > 0:
-            i, nr = _heap_pop(rk, rv, nr, _R_TIES)
-            if not applied[i] or n_ap[i] != 0:
-                continue  # stale
-            rk, rv, nr, lk, lv, nl = _raise_one(i, err, applied, delta, parent_start, parents,
-                                                child_start, children, n_ap, n_rc, rk, rv, nr,
-                                                lk, lv, nl)
-            n_faces += delta[i]
-            raised += 1
-            last_raised = i
+        n_faces, k, last_raised, heaps = _raising(budget, n_faces, err, arcs, cut, heaps)
+        raised += k
         if last_raised == -1:
             break
-    while n_faces > budget and nl > 0:  # only after the guard tripped: back to the budget
-        i, nl = _heap_pop(lk, lv, nl, _L_TIES)
-        if applied[i] or n_rc[i] != 0:
-            continue
-        rk, rv, nr, lk, lv, nl = _lower_one(i, err, applied, delta, parent_start, parents,
-                                            child_start, children, n_ap, n_rc, rk, rv, nr,
-                                            lk, lv, nl)
-        n_faces -= delta[i]
-        lowered += 1
-    return n_faces, raised, lowered
+    # only after the guard tripped: back to the budget
+    n_faces, k, _, heaps = _lowering(budget, n_faces, err, arcs, cut, heaps)
+    return n_faces, raised, lowered + k
 
 
 def refine(cut: Cut, errors: np.ndarray, budget: int) -> tuple[int, int]:
@@ -206,10 +238,9 @@ def refine(cut: Cut, errors: np.ndarray, budget: int) -> tuple[int, int]:
     errors = np.ascontiguousarray(errors, dtype=np.float64)
     if errors.shape != (mt.n_nodes,):
         raise ValueError(f"errors must have shape ({mt.n_nodes},), got {errors.shape}")
-    faces, raised, lowered = _refine(int(budget), errors, cut.applied, int(cut.n_faces),
-                                     mt.delta, mt.parent_start, mt.parents, mt.child_start,
-                                     mt.children, cut.n_applied_parents,
-                                     cut.n_refined_children)
+    arcs = _Arcs(mt.delta, mt.parent_start, mt.parents, mt.child_start, mt.children)
+    frontier = _CutArrays(cut.applied, cut.n_applied_parents, cut.n_refined_children)
+    faces, raised, lowered = _refine(int(budget), errors, int(cut.n_faces), arcs, frontier)
     cut.n_faces = int(faces)
     return int(raised), int(lowered)
 
