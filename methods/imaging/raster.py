@@ -248,25 +248,13 @@ def _lane_code(store):
                       ir.VectorType(i64, LANES))
 
         def splat(x, vt):
-            undef = ir.Constant(vt, ir.Undefined)
-            v = builder.insert_element(undef, x, ir.Constant(i32, 0))
-            return builder.shuffle_vector(v, undef, ir.Constant(ir.VectorType(i32, LANES),
-                                                                [0] * LANES))
+            return _splat(builder, x, vt)
 
         steps = ir.Constant(vl, list(range(LANES)))
         cols = builder.add(splat(lo, vl), steps)
         px = builder.fadd(builder.sitofp(cols, vd), splat(ir.Constant(f64, 0.5), vd))
-        edges, out = [], None
-        for a, dy, xa, q in ((a0, dy0, xa0, q0), (a1, dy1, xa1, q1), (a2, dy2, xa2, q2)):
-            e = builder.fsub(splat(a, vd),
-                             builder.fmul(splat(dy, vd), builder.fsub(px, splat(xa, vd))))
-            fails = builder.fcmp_ordered("<", e, splat(q, vd))
-            out = fails if out is None else builder.or_(out, fails)
-            edges.append(e)
-        z = builder.fadd(builder.fmul(edges[0], splat(z0, vd)),
-                         builder.fmul(edges[1], splat(z1, vd)))
-        z = builder.fmul(builder.fadd(z, builder.fmul(edges[2], splat(z2, vd))),
-                         splat(inv_area, vd))
+        out, z = _lane_edges(builder, px, ((a0, dy0, xa0, q0), (a1, dy1, xa1, q1),
+                                           (a2, dy2, xa2, q2)), (z0, z1, z2, inv_area))
         dp = builder.inttoptr(dptr, vd.as_pointer())
         gp = builder.inttoptr(gptr, vi.as_pointer())
         d = builder.load(dp, align=8)
@@ -288,6 +276,32 @@ def _lane_code(store):
         return bits
 
     return sig, codegen
+
+
+def _splat(builder, x, vt):
+    """The scalar ``x`` in every lane of the vector type ``vt`` (LLVM IR)."""
+    undef = ir.Constant(vt, ir.Undefined)
+    v = builder.insert_element(undef, x, ir.Constant(ir.IntType(32), 0))
+    return builder.shuffle_vector(v, undef, ir.Constant(ir.VectorType(ir.IntType(32), LANES),
+                                                        [0] * LANES))
+
+
+def _lane_edges(builder, px, edges, depths):
+    """:func:`_lane_code`'s edge functions at the columns' centres ``px`` (LLVM IR):
+    (the lanes failing an edge, the lanes' depths). ``edges`` holds each edge's
+    (a, dy, xa, q), ``depths`` (z0, z1, z2, 1 / area)."""
+    vd = px.type
+    values, out = [], None
+    for a, dy, xa, q in edges:
+        e = builder.fsub(_splat(builder, a, vd),
+                         builder.fmul(_splat(builder, dy, vd),
+                                      builder.fsub(px, _splat(builder, xa, vd))))
+        fails = builder.fcmp_ordered("<", e, _splat(builder, q, vd))
+        out = fails if out is None else builder.or_(out, fails)
+        values.append(e)
+    z0, z1, z2, inv_area = (_splat(builder, x, vd) for x in depths)
+    z = builder.fadd(builder.fmul(values[0], z0), builder.fmul(values[1], z1))
+    return out, builder.fmul(builder.fadd(z, builder.fmul(values[2], z2)), inv_area)
 
 
 _lanes = _lane_pass(True)
@@ -320,24 +334,12 @@ def wins_any(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
 def _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, probe):
     """:func:`scan_row`; with ``probe``, :func:`wins_any` (1 at the first pixel won,
     else 0)."""
-    if t[k, T_W] <= 0.0 or t[k, T_W + 1] <= 0.0 or t[k, T_W + 2] <= 0.0:
+    drawn, tri, area = _facing(t, k, cull_front)
+    if not drawn:
         return 0
-    x0, y0, z0 = t[k, T_X], t[k, T_Y], t[k, T_Z]
-    x1, y1, z1 = t[k, T_X + 1], t[k, T_Y + 1], t[k, T_Z + 1]
-    x2, y2, z2 = t[k, T_X + 2], t[k, T_Y + 2], t[k, T_Z + 2]
-    area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-    if not area != 0.0:  # zero or NaN
-        return 0
-    if area < 0.0:  # y-down clockwise: the GL front face
-        if cull_front:
-            return 0
-        x1, y1, z1, x2, y2, z2 = x2, y2, z2, x1, y1, z1  # make the winding positive
-        area = -area
-    # clamped as floats first, so that far-away vertices cannot overflow the integers
-    cmin = int(min(max(np.ceil(min(x0, x1, x2) - 0.5), float(c_lo)), c_hi + 1.0))
-    cmax = int(max(min(np.floor(max(x0, x1, x2) - 0.5), float(c_hi)), c_lo - 1.0))
-    rmin = int(min(max(np.ceil(min(y0, y1, y2) - 0.5), float(r_lo)), r_hi + 1.0))
-    rmax = int(max(min(np.floor(max(y0, y1, y2) - 0.5), float(r_hi)), r_lo - 1.0))
+    x0, y0, z0, x1, y1, z1, x2, y2, z2 = tri
+    cmin, cmax = _centres(x0, x1, x2, c_lo, c_hi)
+    rmin, rmax = _centres(y0, y1, y2, r_lo, r_hi)
     if cmin > cmax or rmin > rmax:
         return 0
     # Edge i is opposite vertex i; a centre fails it where e_i < q_i.
@@ -345,11 +347,12 @@ def _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, prob
     dx1, dy1 = x0 - x2, y0 - y2
     dx2, dy2 = x1 - x0, y1 - y0
     q0, q1, q2 = _threshold(dx0, dy0), _threshold(dx1, dy1), _threshold(dx2, dy2)
+    edges = ((dx0, dy0, q0, x1, y1), (dx1, dy1, q1, x2, y2), (dx2, dy2, q2, x0, y0))
+    depths = (z0, z1, z2, 1.0 / area)
     # Along a row each edge function is monotone in the column (every operation of it is
     # a correctly rounded monotone function of px), so the centres inside all three
     # edges form one run: the row ends where it is left. Not for values so large that
     # the products could overflow (inf - inf is NaN, which is not monotone).
-    inv_area = 1.0 / area
     bounded = max(abs(x0), abs(x1), abs(x2), abs(y0), abs(y1), abs(y2)) < 1e150
     # For the same reason the centres left of a row's run fail one of the edges whose
     # function grows along the row (dy < 0): in a wide box a row starts a column before
@@ -380,66 +383,120 @@ def _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, prob
                                        dx1, dy1, q1, s1, x0, y0, dx2, dy2, q2, s2))
         if vector:
             i = r - r_lo
-            dp, gp = dbase + i * depth.strides[0], gbase + i * ids.strides[0]
-            a0, a1, a2 = dx0 * (py - y1), dx1 * (py - y2), dx2 * (py - y0)
-            if narrow:  # the whole row at once
-                if probe:
-                    if _lanes_probe(dp + start * 8, gp + start * 4, hi - start, start, a0, a1,
-                                    a2, dy0, dy1, dy2, x1, x2, x0, q0, q1, q2, z0, z1, z2,
-                                    inv_area, fid) >> LANES:
-                        return 1
-                    continue
-                _lanes(dp + start * 8, gp + start * 4, hi - start, start, a0, a1, a2, dy0, dy1,
-                       dy2, x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
-                continue
-            entered = False
-            c = start
-            while c <= hi:
-                n = min(hi - c, LANES - 1)
-                if probe:
-                    inside = _lanes_probe(dp + c * 8, gp + c * 4, n, c, a0, a1, a2, dy0, dy1,
-                                          dy2, x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area,
-                                          fid)
-                    if inside >> LANES:
-                        return 1
-                else:
-                    inside = _lanes(dp + c * 8, gp + c * 4, n, c, a0, a1, a2, dy0, dy1, dy2,
-                                    x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
-                entered = entered or inside != 0
-                if entered and bounded and not (inside >> n) & 1:
-                    break  # the run of centres inside ended in these columns
-                c += LANES
-            continue
-        entered = False
-        px = start - 0.5  # the centre's column, stepped exactly (k + 0.5 for integer k)
-        for c in range(start, hi + 1):
-            px += 1.0
-            e0 = dx0 * (py - y1) - dy0 * (px - x1)
-            if e0 < q0:
-                if entered and bounded:
-                    break
-                continue
-            e1 = dx1 * (py - y2) - dy1 * (px - x2)
-            if e1 < q1:
-                if entered and bounded:
-                    break
-                continue
-            e2 = dx2 * (py - y0) - dy2 * (px - x0)
-            if e2 < q2:
-                if entered and bounded:
-                    break
-                continue
-            entered = True
-            z = (e0 * z0 + e1 * z1 + e2 * z2) * inv_area
-            if z < -1.0 or z > 1.0:
-                continue
-            d = depth[r - r_lo, c - c_lo]
-            if z < d or (z == d and fid < ids[r - r_lo, c - c_lo]):
-                if probe:
-                    return 1
-                depth[r - r_lo, c - c_lo] = z
-                ids[r - r_lo, c - c_lo] = fid
+            won = _lanes_row(dbase + i * depth.strides[0], gbase + i * ids.strides[0],
+                             start, hi, py, edges, depths, fid, narrow, bounded, probe)
+        else:
+            won = _scalar_row(depth, ids, r - r_lo, c_lo, start, hi, py, edges, depths, fid,
+                              bounded, probe)
+        if won:
+            return 1
     return 0 if probe else (rmax - rmin + 1) * (cmax - cmin + 1)
+
+
+@njit(cache=True, inline="always")
+def _centres(a, b, c, lo, hi):
+    """The first and last pixel (columns or rows ``lo..hi``) whose centre lies within
+    the coordinates a, b, c (first > last: none)."""
+    # clamped as floats first, so that far-away vertices cannot overflow the integers
+    first = int(min(max(np.ceil(min(a, b, c) - 0.5), float(lo)), hi + 1.0))
+    last = int(max(min(np.floor(max(a, b, c) - 0.5), float(hi)), lo - 1.0))
+    return first, last
+
+
+@njit(cache=True, inline="always")
+def _facing(t, k, cull_front):
+    """Row ``k`` of ``t`` as a triangle to scan: (drawn, its corners (x, y, z) x 3 wound
+    positively, its doubled area). Not drawn: a corner behind the eye, no area (or
+    NaN), or a front face culled."""
+    nothing = (False, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    if t[k, T_W] <= 0.0 or t[k, T_W + 1] <= 0.0 or t[k, T_W + 2] <= 0.0:
+        return nothing
+    x0, y0, z0 = t[k, T_X], t[k, T_Y], t[k, T_Z]
+    x1, y1, z1 = t[k, T_X + 1], t[k, T_Y + 1], t[k, T_Z + 1]
+    x2, y2, z2 = t[k, T_X + 2], t[k, T_Y + 2], t[k, T_Z + 2]
+    area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    if not area != 0.0:  # zero or NaN
+        return nothing
+    if area < 0.0:  # y-down clockwise: the GL front face
+        if cull_front:
+            return nothing
+        x1, y1, z1, x2, y2, z2 = x2, y2, z2, x1, y1, z1  # make the winding positive
+        area = -area
+    return True, (x0, y0, z0, x1, y1, z1, x2, y2, z2), area
+
+
+@njit(cache=True, inline="always")
+def _lanes_row(dp, gp, start, hi, py, edges, depths, fid, narrow, bounded, probe):
+    """Columns ``start..hi`` of one row through :func:`_lanes` (:func:`_lanes_probe`
+    with ``probe``), from the addresses ``dp`` and ``gp`` of its column 0; ``edges``
+    and ``depths`` as :func:`_scan` makes them. Returns 1 when a probe wins a pixel."""
+    (dx0, dy0, q0, x1, y1), (dx1, dy1, q1, x2, y2), (dx2, dy2, q2, x0, y0) = edges
+    z0, z1, z2, inv_area = depths
+    a0, a1, a2 = dx0 * (py - y1), dx1 * (py - y2), dx2 * (py - y0)
+    if narrow:  # the whole row at once
+        if probe:
+            return _lanes_probe(dp + start * 8, gp + start * 4, hi - start, start, a0, a1,
+                                a2, dy0, dy1, dy2, x1, x2, x0, q0, q1, q2, z0, z1, z2,
+                                inv_area, fid) >> LANES != 0
+        _lanes(dp + start * 8, gp + start * 4, hi - start, start, a0, a1, a2, dy0, dy1, dy2,
+               x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
+        return False
+    entered = False
+    c = start
+    while c <= hi:
+        n = min(hi - c, LANES - 1)
+        if probe:
+            inside = _lanes_probe(dp + c * 8, gp + c * 4, n, c, a0, a1, a2, dy0, dy1, dy2,
+                                  x1, x2, x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
+            if inside >> LANES:
+                return True
+        else:
+            inside = _lanes(dp + c * 8, gp + c * 4, n, c, a0, a1, a2, dy0, dy1, dy2, x1, x2,
+                            x0, q0, q1, q2, z0, z1, z2, inv_area, fid)
+        entered = entered or inside != 0
+        if entered and bounded and not (inside >> n) & 1:
+            break  # the run of centres inside ended in these columns
+        c += LANES
+    return False
+
+
+@njit(cache=True, inline="always")
+def _scalar_row(depth, ids, i, c_lo, start, hi, py, edges, depths, fid, bounded, probe):
+    """Columns ``start..hi`` of one row, a centre at a time, into row ``i`` of ``depth``
+    and ``ids`` (indexed from column ``c_lo``); ``edges`` and ``depths`` as :func:`_scan`
+    makes them. Returns whether a probe won a pixel."""
+    (dx0, dy0, q0, x1, y1), (dx1, dy1, q1, x2, y2), (dx2, dy2, q2, x0, y0) = edges
+    z0, z1, z2, inv_area = depths
+    entered = False
+    px = start - 0.5  # the centre's column, stepped exactly (k + 0.5 for integer k)
+    for c in range(start, hi + 1):
+        px += 1.0
+        e0 = dx0 * (py - y1) - dy0 * (px - x1)
+        if e0 < q0:
+            if entered and bounded:
+                break
+            continue
+        e1 = dx1 * (py - y2) - dy1 * (px - x2)
+        if e1 < q1:
+            if entered and bounded:
+                break
+            continue
+        e2 = dx2 * (py - y0) - dy2 * (px - x0)
+        if e2 < q2:
+            if entered and bounded:
+                break
+            continue
+        entered = True
+        z = (e0 * z0 + e1 * z1 + e2 * z2) * inv_area
+        if z < -1.0 or z > 1.0:
+            continue
+        d = depth[i, c - c_lo]
+        if z < d or (z == d and fid < ids[i, c - c_lo]):
+            if probe:
+                return True
+            depth[i, c - c_lo] = z
+            ids[i, c - c_lo] = fid
+    return False
 
 
 #: Relative rounding error of a double (2^-52).

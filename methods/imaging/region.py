@@ -367,48 +367,17 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     rendered and ``img.ent.delta[0]`` is inf (the caller knows the collapse loses
     whatever they give; the returned cost then covers the views done). ``np.inf``:
     every view is rendered."""
-    eyes, shading, stats = img.eyes, img.shading, img.stats
-    mark, tick, vslot, ov_light, wslot, new_uv = (iws.mark, iws.tick, iws.vslot, iws.ov_light,
-                                                  iws.wslot, iws.new_uv)
-    ring, buf, n3, aff, amark, gmark = iws.ring, iws.buf, iws.n3, iws.aff, iws.amark, iws.gmark
-    n_views = img.Y.shape[0]
-    gouraud = shading.gouraud
-    stats[STAT_IMAGE_EVALUATIONS] += 1
+    img.stats[STAT_IMAGE_EVALUATIONS] += 1
     setup_start = cycles()
-    if nt > new_uv.shape[0]:
+    if nt > iws.new_uv.shape[0]:
         raise ValueError("more new texture coordinates than NEW_UV_CAP "
                          "(methods.imaging.region)")
     for i in range(nt):
-        wslot[targets[i]] = i
-        new_uv[i, 0], new_uv[i, 1] = target_uv[i, 0], target_uv[i, 1]
-    # the faces around the edge ([[e]]; those holding both ends disappear)
-    tick[0] += 1
-    na = _faces_around(u, vhead, cnext, falive, mark, tick[0], aff, 0)
-    if not (p[0] == P[v, 0] and p[1] == P[v, 1] and p[2] == P[v, 2]):
-        na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, na)
-    # else a half-edge collapse: v stays, so its faces without u keep their geometry,
-    # texture coordinates and pixels (gouraud adds them below, as v's normal changes)
-    ns = na
-    nr = 0
-    if gouraud:  # vertices whose normal changes, and the faces they shade (footnote 3)
-        for i in range(na):
-            for j in range(3):
-                x = F[aff[i], j]
-                if x != u and vslot[x] < 0:
-                    nr = _add_to_ring(x, ring, vslot, nr)
-        for i in range(nr):
-            x = ring[i]
-            vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, n3)
-            for h in range(n_views):
-                _light(_pos(x, u, v, p, P, 0), _pos(x, u, v, p, P, 1), _pos(x, u, v, p, P, 2),
-                       n3, eyes[h], shading, ov_light[h, i], 0)
-            ns = _faces_around(x, vhead, cnext, falive, mark, tick[0], aff, ns)
-    atick = tick[0]
-    for i in range(ns):
-        amark[aff[i]] = atick
-    for i in range(na):
-        gmark[aff[i]] = atick
-    stats[STAT_SETUP_CYCLES] += cycles() - setup_start
+        iws.wslot[targets[i]] = i
+        iws.new_uv[i, 0], iws.new_uv[i, 1] = target_uv[i, 0], target_uv[i, 1]
+    na, ns, nr = _affected(u, v, p, P, F, vhead, cnext, falive, img, iws)
+    img.stats[STAT_SETUP_CYCLES] += cycles() - setup_start
+    n_views = img.Y.shape[0]
     job, part = iws.vjob, iws.vpart
     helpers = job[JOB_HELPERS]
     iws.vp[0], iws.vp[1], iws.vp[2] = p[0], p[1], p[2]
@@ -416,7 +385,7 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     for h in range(n_views):  # a view left undone adds nothing
         iws.vcost[h] = iws.vdh[h] = 0.0
     clear_partials(part, helpers)
-    publish(job, KIND_COST, u, v, na, ns, atick, npairs)
+    publish(job, KIND_COST, u, v, na, ns, iws.tick[0], npairs)
     g = hand_out(job) if helpers > 0 else 0
     _take_views(0, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background)
     if g > 0:
@@ -430,10 +399,48 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
         dh = np.inf
     img.ent.delta[0] = dh
     for i in range(nr):
-        vslot[ring[i]] = -1
+        iws.vslot[iws.ring[i]] = -1
     for i in range(nt):
-        wslot[targets[i]] = -1
+        iws.wslot[targets[i]] = -1
     return cost
+
+
+@njit(cache=True)
+def _affected(u, v, p, P, F, vhead, cnext, falive, img, iws):
+    """The set-up of :func:`image_cost` for collapsing ``u`` into ``v`` at ``p``: the
+    faces around the edge in ``iws.aff[:na]`` (marked in ``gmark``), with the faces
+    whose shading changes after them up to ``ns`` (marked in ``amark``), and under
+    Gouraud shading the ``nr`` vertices whose normal changes in ``iws.ring`` (their
+    lighting in ``iws.ov_light``; the caller frees their ``vslot``). Returns (na, ns,
+    nr)."""
+    mark, tick, vslot, aff = iws.mark, iws.tick, iws.vslot, iws.aff
+    # the faces around the edge ([[e]]; those holding both ends disappear)
+    tick[0] += 1
+    na = _faces_around(u, vhead, cnext, falive, mark, tick[0], aff, 0)
+    if not (p[0] == P[v, 0] and p[1] == P[v, 1] and p[2] == P[v, 2]):
+        na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, na)
+    # else a half-edge collapse: v stays, so its faces without u keep their geometry,
+    # texture coordinates and pixels (gouraud adds them below, as v's normal changes)
+    ns = na
+    nr = 0
+    if img.shading.gouraud:  # vertices whose normal changes, and the faces they shade
+        for i in range(na):  # (footnote 3)
+            for j in range(3):
+                x = F[aff[i], j]
+                if x != u and vslot[x] < 0:
+                    nr = _add_to_ring(x, iws.ring, vslot, nr)
+        for i in range(nr):
+            x = iws.ring[i]
+            vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, iws.buf, iws.n3)
+            for h in range(img.Y.shape[0]):
+                _light(_pos(x, u, v, p, P, 0), _pos(x, u, v, p, P, 1), _pos(x, u, v, p, P, 2),
+                       iws.n3, img.eyes[h], img.shading, iws.ov_light[h, i], 0)
+            ns = _faces_around(x, vhead, cnext, falive, mark, tick[0], aff, ns)
+    for i in range(ns):
+        iws.amark[aff[i]] = tick[0]
+    for i in range(na):
+        iws.gmark[aff[i]] = tick[0]
+    return na, ns, nr
 
 
 @njit(cache=True)
@@ -467,48 +474,31 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
     faces around ``v`` keep their pixels, and are re-shaded only where the luminance is
     kept (their texture coordinates or normals may change). Otherwise every face
     around ``v`` changes."""
-    M, eyes, S, fbox, vn, L, shading = (img.M, img.eyes, img.S, img.fbox, img.vn, img.L,
-                                        img.shading)
-    mark, tick, t, vslot, ring, rects, buf = (iws.mark, iws.tick, iws.t, iws.vslot, iws.ring,
-                                              iws.rects, iws.buf)
-    sp, aff, amark, gmark = iws.sp, iws.aff, iws.amark, iws.gmark
+    S, fbox = img.S, img.fbox
+    tick, t, rects, sp, aff = iws.tick, iws.t, iws.rects, iws.sp, iws.aff
+    amark, gmark = iws.amark, iws.gmark
     n_views, height, width = img.Y.shape
-    gouraud = shading.gouraud
     img.stats[STAT_COMMITS] += 1
     tick[0] += 1
-    tk = tick[0]
     # aff[:na]: the faces whose geometry changes; aff[:nall]: those around v whose
     # shading may change
     if stays:
         na = 0
         for i in range(held.shape[0]):
-            na = _add_face(held[i], falive, mark, tk, aff, na)
+            na = _add_face(held[i], falive, iws.mark, tick[0], aff, na)
         nall = na
-        if img.ent.shade or gouraud:
-            nall = _faces_around(v, vhead, cnext, falive, mark, tk, aff, na)
+        if img.ent.shade or img.shading.gouraud:
+            nall = _faces_around(v, vhead, cnext, falive, iws.mark, tick[0], aff, na)
     else:
-        na = nall = _faces_around(v, vhead, cnext, falive, mark, tk, aff, 0)
+        na = nall = _faces_around(v, vhead, cnext, falive, iws.mark, tick[0], aff, 0)
     for h in range(n_views):
         rects[h, 0], rects[h, 1], rects[h, 2], rects[h, 3] = 0, -1, 0, -1
-        project(M, h, P[v], width, height, S[h, v])
+        project(img.M, h, P[v], width, height, S[h, v])
         for i in range(n_removed):
             _grow(rects[h], fbox[h, removed[i]])
     ns = nall
-    if gouraud:
-        nr = 0
-        for i in range(nall + n_removed):
-            f = aff[i] if i < nall else removed[i - nall]
-            for j in range(3):
-                x = F[f, j]
-                if valive[x] and vslot[x] < 0:
-                    nr = _add_to_ring(x, ring, vslot, nr)
-        for i in range(nr):
-            x = ring[i]
-            vslot[x] = -1
-            vertex_normal(x, -1, -1, P[x], P, F, vhead, cnext, falive, buf, vn[x])
-            for h in range(n_views):
-                _light(P[x, 0], P[x, 1], P[x, 2], vn[x], eyes[h], shading, L[h, x], 0)
-            ns = _faces_around(x, vhead, cnext, falive, mark, tick[0], aff, ns)
+    if img.shading.gouraud:
+        ns = _relight(nall, removed, n_removed, P, F, vhead, cnext, falive, valive, img, iws)
     for i in range(ns):
         amark[aff[i]] = tick[0]
     for i in range(na):
@@ -527,6 +517,30 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
             if ok:
                 ok = _tiles_add(tiles, h, f, fbox[h, f], TILE, -(-width // TILE))
     return ok, na
+
+
+@njit(cache=True)
+def _relight(nall, removed, n_removed, P, F, vhead, cnext, falive, valive, img, iws):
+    """Under Gouraud shading, after a collapse: the normals and lighting of the live
+    vertices of the faces ``iws.aff[:nall]`` and ``removed[:n_removed]``, and the faces
+    they shade added to ``iws.aff`` after ``nall``; returns the new count."""
+    ring, vslot, vn = iws.ring, iws.vslot, img.vn
+    nr = 0
+    for i in range(nall + n_removed):
+        f = iws.aff[i] if i < nall else removed[i - nall]
+        for j in range(3):
+            x = F[f, j]
+            if valive[x] and vslot[x] < 0:
+                nr = _add_to_ring(x, ring, vslot, nr)
+    ns = nall
+    for i in range(nr):
+        x = ring[i]
+        vslot[x] = -1
+        vertex_normal(x, -1, -1, P[x], P, F, vhead, cnext, falive, iws.buf, vn[x])
+        for h in range(img.Y.shape[0]):
+            _light(P[x, 0], P[x, 1], P[x, 2], vn[x], img.eyes[h], img.shading, img.L[h, x], 0)
+        ns = _faces_around(x, vhead, cnext, falive, iws.mark, iws.tick[0], iws.aff, ns)
+    return ns
 
 
 @njit(cache=True)
