@@ -132,7 +132,6 @@ def make_barrel(around: int = 32, rows: int = 12, rings: int = 6,
     theta[-1] = 0.0  # bit-equal to the first, so the wrap-around is a seam, not a hole
     z = np.linspace(-height / 2, height / 2, rows + 1)
     bulge = radius * (1.0 + 0.12 * np.cos(np.pi * z / height))  # the rims keep radius
-    rim_r = bulge[0]
     cols = np.arange(around + 1)
     cth, sth = np.cos(theta), np.sin(theta)
     body = np.stack([bulge[:, None] * cth[None, :], bulge[:, None] * sth[None, :],
@@ -148,36 +147,10 @@ def make_barrel(around: int = 32, rows: int = 12, rings: int = 6,
     body_faces = len(faces[0])
     count = len(positions[0])
     for top in (False, True):
-        zc = z[-1] if top else z[0]
-        # ring k = 0 is the centre, k = rings the rim (positions equal to the body's)
-        pts = [np.array([[0.0, 0.0, zc]])]
-        lid_uv = [np.array([[0.75, 0.5]])]
-        for k in range(1, rings + 1):
-            rr = rim_r * k / rings if k < rings else rim_r
-            ring = np.stack([rr * cth[:-1], rr * sth[:-1], np.full(around, zc)], axis=1)
-            if k == rings:  # the rim: bit-equal to the body's first/last ring
-                ring = body[-1 if top else 0, :-1].copy()
-            pts.append(ring)
-            lid_uv.append(np.stack([0.75 + 0.24 * (k / rings) * cth[:-1],
-                                    0.5 + 0.48 * (k / rings) * sth[:-1]], axis=1))
-        lid = np.concatenate(pts)
-        tris = []
-        for k in range(rings):
-            inner = 0 if k == 0 else 1 + (k - 1) * around
-            outer = 1 + k * around
-            for c in range(around):
-                c1 = (c + 1) % around
-                if k == 0:
-                    tris.append((0, outer + c, outer + c1))
-                else:
-                    tris.append((inner + c, outer + c, outer + c1))
-                    tris.append((inner + c, outer + c1, inner + c1))
-        tris = np.array(tris) + count
-        if not top:
-            tris = tris[:, ::-1]  # the bottom lid faces down
+        lid, lid_uv, tris = _barrel_lid(body[-1 if top else 0, :-1], rings, top)
         positions.append(lid)
-        uvs.append(np.concatenate(lid_uv))
-        faces.append(tris)
+        uvs.append(lid_uv)
+        faces.append(tris + count)
         count += len(lid)
     lid_faces = sum(len(f) for f in faces[1:])
     mesh = Mesh(np.concatenate(positions), np.concatenate(faces).astype(np.int32),
@@ -185,3 +158,35 @@ def make_barrel(around: int = 32, rows: int = 12, rings: int = 6,
                 metadata={"materials": ("staves", "lid"),
                           "material_faces": (int(body_faces), int(lid_faces))})
     return mesh
+
+
+def _barrel_lid(rim: np.ndarray, rings: int, top: bool):
+    """A barrel's lid of ``rings`` rings inside ``rim`` (the body's end ring, which ring
+    ``rings`` copies bit for bit): (positions, UVs, triangles), facing up if ``top``."""
+    around = len(rim)
+    zc = rim[0, 2]
+    theta = np.linspace(0.0, 2 * np.pi, around + 1)[:-1]
+    cth, sth = np.cos(theta), np.sin(theta)
+    # ring k = 0 is the centre, k = rings the rim
+    pts = [np.array([[0.0, 0.0, zc]])]
+    lid_uv = [np.array([[0.75, 0.5]])]
+    rim_r = np.hypot(rim[0, 0], rim[0, 1])
+    for k in range(1, rings + 1):
+        rr = rim_r * k / rings
+        pts.append(rim.copy() if k == rings else
+                   np.stack([rr * cth, rr * sth, np.full(around, zc)], axis=1))
+        lid_uv.append(np.stack([0.75 + 0.24 * (k / rings) * cth,
+                                0.5 + 0.48 * (k / rings) * sth], axis=1))
+    tris = []
+    for k in range(rings):
+        inner = 0 if k == 0 else 1 + (k - 1) * around
+        outer = 1 + k * around
+        for c in range(around):
+            c1 = (c + 1) % around
+            if k == 0:
+                tris.append((0, outer + c, outer + c1))
+            else:
+                tris.append((inner + c, outer + c, outer + c1))
+                tris.append((inner + c, outer + c1, inner + c1))
+    tris = np.array(tris)
+    return np.concatenate(pts), np.concatenate(lid_uv), tris if top else tris[:, ::-1]

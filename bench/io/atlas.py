@@ -185,16 +185,25 @@ def pack_materials(parts: list[Part], *, source: str, name: str,
         materials.append(material)
         tiles.append(tile)
     texture, rects, size = _pack(tiles, source)
-
-    positions, faces, uvs, normals = [], [], [], []
-    offset = 0
-    index = {n: i for i, n in enumerate(order)}
     for material, (x, y, w, h) in zip(materials, rects):
         nu, nv = material["repeat"]
         material["rect"] = [x, y, w // nu, h // nv]  # one period
         material["tile"] = _tile_uv(material["rect"], material["repeat"], size)
-    for part in parts:
-        material = materials[index[part.material]]
+    index = {n: i for i, n in enumerate(order)}
+    positions, faces, uvs, normals = _joined(parts, [materials[index[p.material]]
+                                                     for p in parts], source)
+    meta = dict(metadata or {})
+    meta[KEY] = {"gutter": GUTTER, "size": list(size), "materials": materials}
+    return build_mesh(positions, faces, source=source, uv=uvs, normals=normals,
+                      texture=texture, name=name, metadata=meta)
+
+
+def _joined(parts: list[Part], materials: list[dict], source: str):
+    """The parts as one mesh's (positions, faces, atlas UVs, normals or None), each
+    part's UVs moved into its material's tile (``materials``: each part's)."""
+    positions, faces, uvs, normals = [], [], [], []
+    offset = 0
+    for part, material in zip(parts, materials):
         positions.append(np.asarray(part.positions, dtype=np.float64))
         faces.append(np.asarray(part.faces, dtype=np.int64) + offset)
         uvs.append(_to_atlas(material, part.uv, len(part.positions)))
@@ -207,11 +216,7 @@ def pack_materials(parts: list[Part], *, source: str, name: str,
         normal_array = None
     else:
         normal_array = np.concatenate(normals)
-    meta = dict(metadata or {})
-    meta[KEY] = {"gutter": GUTTER, "size": list(size), "materials": materials}
-    return build_mesh(np.concatenate(positions), np.concatenate(faces), source=source,
-                      uv=np.concatenate(uvs), normals=normal_array, texture=texture,
-                      name=name, metadata=meta)
+    return np.concatenate(positions), np.concatenate(faces), np.concatenate(uvs), normal_array
 
 
 def materials_of(mesh: Mesh) -> list[dict] | None:

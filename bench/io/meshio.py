@@ -608,25 +608,8 @@ def _load_materials(dumped: list, keys: dict, source: str, ext: str, scan: dict,
             _check_file_uv(uv, source, Path(source) if ext == ".obj" else None)
         image, texture_source, color = None, None, (255, 255, 255, 255)
         if key is not None:
-            color = _material_color(material)
-            if ext == ".obj":
-                texture_source, problem = textures.get(key, (None, None))
-                if texture_source is not None and problem is not None:
-                    what = "not found" if problem == "not found" else "unreadable"
-                    detail = texture_source if problem == "not found" else \
-                        f"{texture_source} {problem}"
-                    warn(f"{source}: material '{key}': texture image {what} "
-                         f"({detail}); using its colour")
-                    texture_source = None
-            else:
-                texture_source = source
-            picture = _material_image(material) if texture_source is not None else None
-            image = None if picture is None else _image_array(picture)
-            if image is not None and ext == ".obj" and "kd" not in getattr(material, "kwargs", {}):
-                color = (255, 255, 255, 255)  # no Kd: white, not trimesh's 0.4 grey
-            if picture is None and texture_source is not None and ext == ".obj":
-                warn(f"{source}: material '{key}': texture image unreadable "
-                     f"({_unreadable(Path(texture_source))}); using its colour")
+            image, texture_source, color = _material_look(material, key, ext, textures,
+                                                          source)
         elif isinstance(visual, ColorVisuals) and visual.kind == "vertex":
             color = tuple(int(c) for c in np.asarray(visual.vertex_colors).mean(axis=0).round())
             recoloured += 1
@@ -636,6 +619,31 @@ def _load_materials(dumped: list, keys: dict, source: str, ext: str, scan: dict,
         warn(f"{source}: vertex colours of {recoloured} parts without a material replaced "
              "by their mean colour (a multi-material mesh keeps one colour per material)")
     return pack_materials(parts, source=source, name=name, metadata={"source": source})
+
+
+def _material_look(material, key: str, ext: str, textures: dict, source: str):
+    """A material's (texture image or None, its source or None, RGBA colour); a texture
+    an OBJ names but that is missing or unreadable is warned of, and its colour used."""
+    color = _material_color(material)
+    if ext == ".obj":
+        texture_source, problem = textures.get(key, (None, None))
+        if texture_source is not None and problem is not None:
+            what = "not found" if problem == "not found" else "unreadable"
+            detail = texture_source if problem == "not found" else \
+                f"{texture_source} {problem}"
+            warn(f"{source}: material '{key}': texture image {what} "
+                 f"({detail}); using its colour")
+            texture_source = None
+    else:
+        texture_source = source
+    picture = _material_image(material) if texture_source is not None else None
+    image = None if picture is None else _image_array(picture)
+    if image is not None and ext == ".obj" and "kd" not in getattr(material, "kwargs", {}):
+        color = (255, 255, 255, 255)  # no Kd: white, not trimesh's 0.4 grey
+    if picture is None and texture_source is not None and ext == ".obj":
+        warn(f"{source}: material '{key}': texture image unreadable "
+             f"({_unreadable(Path(texture_source))}); using its colour")
+    return image, texture_source, color
 
 
 def _material_names(order: list, ext: str) -> dict:

@@ -266,19 +266,7 @@ def edge_penalties(mesh: Mesh, borders: np.ndarray | None = None,
     A mesh without UVs, or without a texture when ``borders`` is not given, has no
     penalties (all zero, nothing crossing); so has a mesh of zero total area.
     """
-    unknown = sorted(set(canny_params) - set(_CANNY_PARAMS))
-    if unknown:
-        raise ValueError(f"unknown Canny parameter(s) {unknown}; the parameters are "
-                         f"{list(_CANNY_PARAMS)}")
-    if borders is not None and canny_params:
-        raise ValueError("pass either borders or Canny parameters, not both: the "
-                         "parameters only apply when borders are detected in the texture")
-    if borders is not None:
-        borders = _check_borders(borders)
-    if canny_params:
-        p = {"sigma": DEFAULT_SIGMA, "low": DEFAULT_LOW, "high": DEFAULT_HIGH}
-        _check_canny_params(**(p | canny_params))
-
+    borders = _checked_inputs(borders, canny_params)
     welded = mesh.welded
     n_edges = len(welded.edges)
     penalty = np.zeros(n_edges)
@@ -297,6 +285,22 @@ def edge_penalties(mesh: Mesh, borders: np.ndarray | None = None,
     if total > 0:
         penalty[crossing] = incident[crossing] / total  # Eq. 2's added term
     return welded.edges, penalty, crossing
+
+
+def _checked_inputs(borders: np.ndarray | None, canny_params: dict) -> np.ndarray | None:
+    """:func:`edge_penalties`' ``borders`` (checked, or None) and Canny parameters,
+    each problem a one-line error."""
+    unknown = sorted(set(canny_params) - set(_CANNY_PARAMS))
+    if unknown:
+        raise ValueError(f"unknown Canny parameter(s) {unknown}; the parameters are "
+                         f"{list(_CANNY_PARAMS)}")
+    if borders is not None and canny_params:
+        raise ValueError("pass either borders or Canny parameters, not both: the "
+                         "parameters only apply when borders are detected in the texture")
+    if canny_params:
+        p = {"sigma": DEFAULT_SIGMA, "low": DEFAULT_LOW, "high": DEFAULT_HIGH}
+        _check_canny_params(**(p | canny_params))
+    return None if borders is None else _check_borders(borders)
 
 
 def border_image_with_edges(mesh: Mesh, borders: np.ndarray, crossing: np.ndarray,

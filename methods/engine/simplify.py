@@ -4,6 +4,7 @@ render vertices rebuilt from the surviving wedges."""
 from __future__ import annotations
 
 import math
+import time
 from collections import namedtuple
 
 import numba
@@ -84,20 +85,12 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     mesh with coordinates beyond 2^±60 is simplified as a copy scaled by a power of two
     (:mod:`methods.engine.scale`) and its result scaled back.
     """
-    import time
-
     if target_faces < 1:
         raise ValueError(f"target_faces must be at least 1, got {target_faces}")
     exponent = workable_exponent(mesh.positions)
     if exponent:  # coordinates near 1e300 or 1e-150: simplify at unit scale (exactly)
-        if image is not None:
-            raise ValueError("the image term was made for a mesh outside the workable "
-                             "scale; scale the mesh first (methods.engine.scale)")
-        result = simplify_mesh(scaled(mesh, -exponent), target_faces, policy, verify,
-                               borders, image, max_collapses)
-        result.mesh = scaled(result.mesh, exponent)
-        result.log["position"] = np.ldexp(result.log["position"], exponent)
-        return result
+        return _simplify_scaled(mesh, exponent, target_faces, policy, verify, borders, image,
+                                max_collapses)
     start = time.perf_counter()
     prep = _prepare(mesh, policy, image)
     _check_canny(mesh, policy, borders, image)
@@ -109,8 +102,32 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     if policy.canny_weight != 0.0 and policy.canny_units == "base-cost":
         terms, canny_stats = _canny_units(arrays, rules, terms, images)
     scratch = new_scratch(len(arrays.P))
-    stopped, evaluations, mismatches, rejects, log, stall_collapses = _phases(
-        arrays, rules, terms, scratch, images, prep.kinds, policy.stall_rotations)
+    run = _phases(arrays, rules, terms, scratch, images, prep.kinds, policy.stall_rotations)
+    return _result(mesh, target_faces, policy, image, prep, arrays, rules, images, run,
+                   canny_stats, start)
+
+
+def _simplify_scaled(mesh: Mesh, exponent: int, target_faces: int, policy: Policy, verify,
+                     borders, image, max_collapses) -> EngineResult:
+    """:func:`simplify_mesh` of ``mesh`` scaled by 2^-``exponent``, its result scaled
+    back (exactly: powers of two)."""
+    if image is not None:
+        raise ValueError("the image term was made for a mesh outside the workable "
+                         "scale; scale the mesh first (methods.engine.scale)")
+    result = simplify_mesh(scaled(mesh, -exponent), target_faces, policy, verify,
+                           borders, image, max_collapses)
+    result.mesh = scaled(result.mesh, exponent)
+    result.log["position"] = np.ldexp(result.log["position"], exponent)
+    return result
+
+
+def _result(mesh: Mesh, target_faces: int, policy: Policy, image, prep, arrays, rules,
+            images, run, canny_stats: dict, start: float) -> EngineResult:
+    """The :class:`EngineResult` of a finished run (started at ``start``, a
+    ``time.perf_counter()``): the simplified mesh in the input's numbering, the stop
+    reason, the statistics and the log."""
+    stopped, evaluations, mismatches, rejects, log, stall_collapses = run
+    verify = rules.verify
     image_stats = {} if image is None else image.statistics(
         mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
         arrays.vhead, arrays.cnext, arrays.valive, prep.lo, prep.scale)
