@@ -383,11 +383,11 @@ def _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, prob
                                        dx1, dy1, q1, s1, x0, y0, dx2, dy2, q2, s2))
         if vector:
             i = r - r_lo
-            won = _lanes_row(dbase + i * depth.strides[0], gbase + i * ids.strides[0],
-                             start, hi, py, edges, depths, fid, narrow, bounded, probe)
+            won = _lanes_row((dbase + i * depth.strides[0], gbase + i * ids.strides[0]),
+                             (start, hi, py), edges, depths, fid, narrow, bounded, probe)
         else:
-            won = _scalar_row(depth, ids, r - r_lo, c_lo, start, hi, py, edges, depths, fid,
-                              bounded, probe)
+            won = _scalar_row((depth, ids, r - r_lo, c_lo), (start, hi, py), edges, depths,
+                              fid, bounded, probe)
         if won:
             return 1
     return 0 if probe else (rmax - rmin + 1) * (cmax - cmin + 1)
@@ -426,10 +426,13 @@ def _facing(t, k, cull_front):
 
 
 @njit(cache=True, inline="always")
-def _lanes_row(dp, gp, start, hi, py, edges, depths, fid, narrow, bounded, probe):
-    """Columns ``start..hi`` of one row through :func:`_lanes` (:func:`_lanes_probe`
-    with ``probe``), from the addresses ``dp`` and ``gp`` of its column 0; ``edges``
-    and ``depths`` as :func:`_scan` makes them. Returns 1 when a probe wins a pixel."""
+def _lanes_row(row, span, edges, depths, fid, narrow, bounded, probe):
+    """Columns ``start..hi`` of one row (``span``: start, hi and the row's centre ``py``)
+    through :func:`_lanes` (:func:`_lanes_probe` with ``probe``), from the addresses of
+    its column 0 in the depths and ids (``row``); ``edges`` and ``depths`` as
+    :func:`_scan` makes them. Returns True when a probe wins a pixel."""
+    dp, gp = row
+    start, hi, py = span
     (dx0, dy0, q0, x1, y1), (dx1, dy1, q1, x2, y2), (dx2, dy2, q2, x0, y0) = edges
     z0, z1, z2, inv_area = depths
     a0, a1, a2 = dx0 * (py - y1), dx1 * (py - y2), dx2 * (py - y0)
@@ -461,10 +464,13 @@ def _lanes_row(dp, gp, start, hi, py, edges, depths, fid, narrow, bounded, probe
 
 
 @njit(cache=True, inline="always")
-def _scalar_row(depth, ids, i, c_lo, start, hi, py, edges, depths, fid, bounded, probe):
-    """Columns ``start..hi`` of one row, a centre at a time, into row ``i`` of ``depth``
-    and ``ids`` (indexed from column ``c_lo``); ``edges`` and ``depths`` as :func:`_scan`
-    makes them. Returns whether a probe won a pixel."""
+def _scalar_row(row, span, edges, depths, fid, bounded, probe):
+    """Columns ``start..hi`` of one row (``span``: start, hi and the row's centre
+    ``py``), a centre at a time, into row ``i`` of ``depth`` and ``ids`` (indexed from
+    column ``c_lo``; ``row``: depth, ids, i, c_lo); ``edges`` and ``depths`` as
+    :func:`_scan` makes them. Returns whether a probe won a pixel."""
+    depth, ids, i, c_lo = row
+    start, hi, py = span
     (dx0, dy0, q0, x1, y1), (dx1, dy1, q1, x2, y2), (dx2, dy2, q2, x0, y0) = edges
     z0, z1, z2, inv_area = depths
     entered = False
@@ -726,10 +732,12 @@ def _render(mesh, cameras, width, height, shading, specular, constants, cull_fro
 
 def shading_constants(constants, specular: bool, gouraud: bool, textured: bool) -> Shading:
     """The :data:`Shading` of :func:`shade_pixel` (every coefficient a float64)."""
-    return Shading(float(np.float64(constants.ambient)), float(np.float64(constants.diffuse)),
-                   float(np.float64(constants.specular)),
-                   float(np.float64(constants.shininess)), float(np.float64(constants.albedo)),
-                   bool(specular), bool(gouraud), bool(textured))
+    return Shading(ambient=float(np.float64(constants.ambient)),
+                   diffuse=float(np.float64(constants.diffuse)),
+                   ks=float(np.float64(constants.specular)),
+                   shininess=float(np.float64(constants.shininess)),
+                   albedo=float(np.float64(constants.albedo)), specular=bool(specular),
+                   gouraud=bool(gouraud), textured=bool(textured))
 
 
 def face_id_buffers(mesh, cameras, width: int = 256, height: int = 256,

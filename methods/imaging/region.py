@@ -375,7 +375,7 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     for i in range(nt):
         iws.wslot[targets[i]] = i
         iws.new_uv[i, 0], iws.new_uv[i, 1] = target_uv[i, 0], target_uv[i, 1]
-    na, ns, nr = _affected(u, v, p, P, F, vhead, cnext, falive, img, iws)
+    na, ns, nr = _affected(u, v, p, P, (F, vhead, cnext, falive), img, iws)
     img.stats[STAT_SETUP_CYCLES] += cycles() - setup_start
     n_views = img.Y.shape[0]
     job, part = iws.vjob, iws.vpart
@@ -406,13 +406,15 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
 
 
 @njit(cache=True)
-def _affected(u, v, p, P, F, vhead, cnext, falive, img, iws):
-    """The set-up of :func:`image_cost` for collapsing ``u`` into ``v`` at ``p``: the
-    faces around the edge in ``iws.aff[:na]`` (marked in ``gmark``), with the faces
-    whose shading changes after them up to ``ns`` (marked in ``amark``), and under
+def _affected(u, v, p, P, topology, img, iws):
+    """The set-up of :func:`image_cost` for collapsing ``u`` into ``v`` at ``p``
+    (``topology``: the mesh's F, vhead, cnext, falive): the faces around the edge in
+    ``iws.aff[:na]`` (marked in ``gmark``), with the faces whose shading changes
+    after them up to ``ns`` (marked in ``amark``), and under
     Gouraud shading the ``nr`` vertices whose normal changes in ``iws.ring`` (their
     lighting in ``iws.ov_light``; the caller frees their ``vslot``). Returns (na, ns,
     nr)."""
+    F, vhead, cnext, falive = topology
     mark, tick, vslot, aff = iws.mark, iws.tick, iws.vslot, iws.aff
     # the faces around the edge ([[e]]; those holding both ends disappear)
     tick[0] += 1
@@ -498,7 +500,8 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
             _grow(rects[h], fbox[h, removed[i]])
     ns = nall
     if img.shading.gouraud:
-        ns = _relight(nall, removed, n_removed, P, F, vhead, cnext, falive, valive, img, iws)
+        ns = _relight(nall, removed, n_removed, P, (F, vhead, cnext, falive), valive, img,
+                      iws)
     for i in range(ns):
         amark[aff[i]] = tick[0]
     for i in range(na):
@@ -520,10 +523,12 @@ def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vh
 
 
 @njit(cache=True)
-def _relight(nall, removed, n_removed, P, F, vhead, cnext, falive, valive, img, iws):
+def _relight(nall, removed, n_removed, P, topology, valive, img, iws):
     """Under Gouraud shading, after a collapse: the normals and lighting of the live
     vertices of the faces ``iws.aff[:nall]`` and ``removed[:n_removed]``, and the faces
-    they shade added to ``iws.aff`` after ``nall``; returns the new count."""
+    they shade added to ``iws.aff`` after ``nall``; returns the new count (``topology``:
+    F, vhead, cnext, falive)."""
+    F, vhead, cnext, falive = topology
     ring, vslot, vn = iws.ring, iws.vslot, img.vn
     nr = 0
     for i in range(nall + n_removed):

@@ -379,7 +379,7 @@ def _replay(given, steps):
         u, v = steps.removed[i], steps.kept[i]
         moved = _moves(given, steps, i, v, pn)
         star, ns = _star(given.F, walk, u, v, star)
-        fresh = _merge_wedges(given, steps, walk, b, i, u, v, moved, pn, fresh)
+        fresh = _merge_wedges(given, steps, walk, b, i, moved, pn, fresh)
         for s in range(2):  # the removed faces die
             r = steps.faces[i, s]
             if r >= 0:
@@ -458,10 +458,11 @@ def _star(F, walk, u, v, star):
 
 
 @njit(cache=True)
-def _merge_wedges(given, steps, walk, b, i, u, v, moved, pn, fresh):
+def _merge_wedges(given, steps, walk, b, i, moved, pn, fresh):
     """Collapse ``i``'s merged vertex v: its wedges take their logged UVs and v its new
     position; a wedge whose position or UV changed, or that was u's, gets a new MT
     vertex. Returns ``fresh`` (scratch, grown when short)."""
+    u, v = steps.removed[i], steps.kept[i]
     w0, w1 = steps.wedge_start[i], steps.wedge_start[i + 1]
     fresh = _grow(fresh, w1 - w0)
     for q in range(w1 - w0):
