@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from methods.engine.state import LOG_CHANGED_HEADROOM, PROFILE_CAP, WEDGE_TARGETS_CAP
+from methods.engine.state import LOG_CHANGED_HEADROOM, PROFILE_CAP, WEDGE_TARGETS_CAP, renders
 from methods.engine.wedges import _mapped, _wedge_pairs
 from methods.imaging.region import AFFECTED_CAP, MAX_RING
 from methods.imaging.rows import NORMAL_FACES_CAP
@@ -104,8 +104,7 @@ def _verdict(a, b, mesh, rules):
                + live_corners(b, mesh.vhead, mesh.cnext, mesh.falive))
     if corners <= WEDGE_TARGETS_CAP:  # every workspace below holds at least this many
         return 0
-    rendered = rules.weights.image != 0.0 or rules.weights.entropy != 0.0
-    if corners > LOG_CHANGED_HEADROOM or (rendered and corners > NORMAL_FACES_CAP):
+    if corners > LOG_CHANGED_HEADROOM or (renders(rules.weights) and corners > NORMAL_FACES_CAP):
         return 1
     if rules.use_r5 and corners > PROFILE_CAP:
         return 1
@@ -117,8 +116,7 @@ def over_capacity(a, b, mesh, rules, scratch):
     """True when collapsing edge (a, b) would exceed a workspace of the engine (see the
     module's docstring); ``mesh``, ``rules`` and ``scratch`` are the structures of
     :mod:`methods.engine.state`. Writes only scratch."""
-    rendered = rules.weights.image != 0.0 or rules.weights.entropy != 0.0
-    if rendered and _ring_over_capacity(a, b, mesh, scratch):
+    if renders(rules.weights) and _ring_over_capacity(a, b, mesh, scratch):
         return True
     verdict = _verdict(a, b, mesh, rules)
     if verdict == 2:

@@ -39,7 +39,7 @@ from methods.engine.quadrics import (
     best_of_ends,
     quadric_error,
 )
-from methods.engine.state import QUADRIC_SIZE
+from methods.engine.state import QUADRIC_SIZE, renders
 from methods.engine.topology import _edge_faces, _faces_area, _gather_profile
 from methods.engine.wedges import (
     _edge_parameter,
@@ -157,7 +157,7 @@ def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
     w_q, w_lt = weights.quadric, weights.memoryless
     tri_a, tri_b, tri_c, bnd_a, bnd_b, link = (pr.tri_a, pr.tri_b, pr.tri_c, pr.bnd_a,
                                                pr.bnd_b, pr.link)
-    rendered = weights.image != 0.0 or weights.entropy != 0.0
+    rendered = renders(weights)
     keep = b
     if forced != -1:
         keep = forced

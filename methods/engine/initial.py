@@ -102,7 +102,7 @@ def _worker_state(scratch, images):
     reads (mesh, images, counts, tile index) is shared."""
     own_iws = type(images.iws)(*(np.array(a) for a in images.iws))
     return (new_scratch(len(scratch.mark)),
-            Images(own_counters(images.img), images.tiles, own_iws))
+            Images(img=own_counters(images.img), tiles=images.tiles, iws=own_iws))
 
 
 def first_costs(mesh, rules, terms, scratch, images, threads: int | None = None):

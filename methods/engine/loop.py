@@ -50,6 +50,7 @@ from methods.engine.state import (
     Images,
     Log,
     Queue,
+    renders,
 )
 from methods.engine.topology import (
     _check,
@@ -83,7 +84,7 @@ def _cost(a, b, mesh, rules, terms, scratch, images, queue):
 @njit(cache=True)
 def _remember(queue, rules, a, b, nv, cost):
     """With the image term, note the key an edge was queued at (see :func:`_run`)."""
-    if rules.weights.image != 0.0 or rules.weights.entropy != 0.0:
+    if renders(rules.weights):
         queue.last_key[min(a, b) * nv + max(a, b)] = cost
 
 
@@ -158,10 +159,10 @@ def _block(blocked, a, b):
     when full); returns the table."""
     n_rec = blocked.count[0]
     if n_rec == blocked.live.shape[0]:
-        blocked = Blocked(np.concatenate((blocked.end, np.empty_like(blocked.end))),
-                          np.concatenate((blocked.next, np.empty_like(blocked.next))),
-                          np.concatenate((blocked.live, np.zeros_like(blocked.live))),
-                          blocked.head, blocked.count)
+        blocked = Blocked(end=np.concatenate((blocked.end, np.empty_like(blocked.end))),
+                          next=np.concatenate((blocked.next, np.empty_like(blocked.next))),
+                          live=np.concatenate((blocked.live, np.zeros_like(blocked.live))),
+                          head=blocked.head, count=blocked.count)
     blocked.end[n_rec, 0] = a
     blocked.end[n_rec, 1] = b
     blocked.next[n_rec, 0] = blocked.head[a]
@@ -190,11 +191,14 @@ def _log_collapse(log, u, v, fresh, p):
     its lists for what one collapse can add; returns the log (its lists may have
     grown)."""
     n, count = log.count[LOG_COLLAPSES], log.count
-    log = Log(log.cost, log.removed, log.kept, log.pos, log.faces, log.start,
-              _doubled(log.changed, count[LOG_CHANGED], LOG_CHANGED_HEADROOM),
-              log.pair_start, _doubled(log.pairs, count[LOG_PAIRS], WEDGE_PAIRS_CAP),
-              log.wedge_start, _doubled(log.wedges, count[LOG_WEDGES], WEDGE_TARGETS_CAP),
-              _doubled(log.wedge_uv, count[LOG_WEDGES], WEDGE_TARGETS_CAP), count)
+    log = Log(cost=log.cost, removed=log.removed, kept=log.kept, pos=log.pos, faces=log.faces,
+              start=log.start,
+              changed=_doubled(log.changed, count[LOG_CHANGED], LOG_CHANGED_HEADROOM),
+              pair_start=log.pair_start,
+              pairs=_doubled(log.pairs, count[LOG_PAIRS], WEDGE_PAIRS_CAP),
+              wedge_start=log.wedge_start,
+              wedges=_doubled(log.wedges, count[LOG_WEDGES], WEDGE_TARGETS_CAP),
+              wedge_uv=_doubled(log.wedge_uv, count[LOG_WEDGES], WEDGE_TARGETS_CAP), count=count)
     log.cost[n] = fresh
     log.removed[n] = u
     log.kept[n] = v
@@ -242,7 +246,7 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
     for i in range(min(removed, 2)):
         log.faces[n, i] = efaces[i]
     faces_removed(mesh, efaces, min(removed, efaces.shape[0]))
-    if rules.weights.image != 0.0 or rules.weights.entropy != 0.0:
+    if renders(rules.weights):
         img, tiles, iws = images.img, images.tiles, images.iws
         # the faces that held u: with v in place, the only ones whose geometry changes
         held_u = log.changed[first_changed:n_changed]
@@ -296,7 +300,7 @@ def _requeue(heap, u, v, removed, cost, fresh, mesh, rules, terms, scratch, imag
     single call site here: each call site is a copy of the costing for numba and LLVM
     to compile."""
     weights, stamp, p, nbr_v = rules.weights, queue.stamp, scratch.p, scratch.nbr_v
-    rendered = weights.image != 0.0 or weights.entropy != 0.0  # image and/or entropy
+    rendered = renders(weights)
     neighbourhood_cost = weights.memoryless != 0.0 or weights.canny != 0.0 or rendered
     nv = mesh.P.shape[0]
     m = _neighbors(v, mesh.F, mesh.vhead, mesh.cnext, mesh.falive, scratch.mark,
@@ -347,12 +351,16 @@ def _new_log(max_collapses, m):
     """An empty :data:`~methods.engine.state.Log` for ``max_collapses`` collapses of a
     mesh of ``m`` faces."""
     c = max_collapses
-    return Log(np.empty(c), np.empty(c, np.int32), np.empty(c, np.int32), np.empty((c, 3)),
-               np.full((c, 2), -1, np.int64), np.zeros(c + 1, np.int64),
-               np.empty(max(LOG_CHANGED_MIN, 3 * m), np.int64),
-               np.zeros(c + 1, np.int64), np.empty((max(WEDGE_PAIRS_CAP, c), 2), np.int64),
-               np.zeros(c + 1, np.int64), np.empty(max(WEDGE_TARGETS_CAP, 2 * c), np.int64),
-               np.empty((max(WEDGE_TARGETS_CAP, 2 * c), 2)), np.zeros(N_LOG_COUNTS, np.int64))
+    return Log(cost=np.empty(c), removed=np.empty(c, np.int32), kept=np.empty(c, np.int32),
+               pos=np.empty((c, 3)), faces=np.full((c, 2), -1, np.int64),
+               start=np.zeros(c + 1, np.int64),
+               changed=np.empty(max(LOG_CHANGED_MIN, 3 * m), np.int64),
+               pair_start=np.zeros(c + 1, np.int64),
+               pairs=np.empty((max(WEDGE_PAIRS_CAP, c), 2), np.int64),
+               wedge_start=np.zeros(c + 1, np.int64),
+               wedges=np.empty(max(WEDGE_TARGETS_CAP, 2 * c), np.int64),
+               wedge_uv=np.empty((max(WEDGE_TARGETS_CAP, 2 * c), 2)),
+               count=np.zeros(N_LOG_COUNTS, np.int64))
 
 
 @njit(cache=True)
@@ -369,8 +377,20 @@ def _new_queue(nv):
              np.int64(0))]
     heap.pop()
     last_key = Dict.empty(key_type=types.int64, value_type=types.float64)
-    return heap, Queue(np.zeros(nv, np.int64), np.zeros(nv, np.int64), last_key,
-                       np.zeros(2, np.int64))
+    return heap, Queue(stamp=np.zeros(nv, np.int64), pushed_at=np.zeros(nv, np.int64),
+                       last_key=last_key, tally=np.zeros(2, np.int64))
+
+
+@njit(cache=True)
+def _new_blocked(nv):
+    """No blocked edges yet. Blocked edges are rejected candidates, re-queued once when
+    either endpoint's stamp changes. Each record is linked into both endpoints' lists
+    and dies when re-queued, so an edge is pushed once per rejection, never once per
+    list it sits in."""
+    return Blocked(end=np.empty((BLOCKED_INITIAL, 2), np.int64),
+                   next=np.empty((BLOCKED_INITIAL, 2), np.int64),
+                   live=np.zeros(BLOCKED_INITIAL, np.bool_), head=np.full(nv, -1, np.int64),
+                   count=np.zeros(1, np.int64))
 
 
 @njit(cache=True, nogil=True)
@@ -391,13 +411,7 @@ def _run(mesh, rules, terms, scratch, images, kinds, first):
     queue = borrowed(owned_queue)
     rejects = np.zeros(_N_REJECTIONS, np.int64)
     log = _new_log(rules.max_collapses, F.shape[0])
-    # Blocked edges: rejected candidates, re-queued once when either endpoint's stamp
-    # changes. Each record is linked into both endpoints' lists and dies when re-queued,
-    # so an edge is pushed once per rejection, never once per list it sits in.
-    blocked = Blocked(np.empty((BLOCKED_INITIAL, 2), np.int64),
-                      np.empty((BLOCKED_INITIAL, 2), np.int64),
-                      np.zeros(BLOCKED_INITIAL, np.bool_), np.full(nv, -1, np.int64),
-                      np.zeros(1, np.int64))
+    blocked = _new_blocked(nv)
     # Collect: every edge, costed once at the original mesh before the loop.
     _collect_candidates(heap, first, rules, queue, nv)
     faces = 0

@@ -225,11 +225,11 @@ def _joined(first, then):
         return np.concatenate([getattr(first, name)[:n[0] + 1],
                                getattr(then, name)[1:n[1] + 1] + shift])
 
-    return Log(rows("cost"), rows("removed"), rows("kept"), rows("pos"), rows("faces"),
-               starts("start", used["changed"][0]), lists("changed"),
-               starts("pair_start", used["pairs"][0]), lists("pairs"),
-               starts("wedge_start", used["wedges"][0]), lists("wedges"), lists("wedge_uv"),
-               first.count + then.count)
+    return Log(cost=rows("cost"), removed=rows("removed"), kept=rows("kept"), pos=rows("pos"),
+               faces=rows("faces"), start=starts("start", used["changed"][0]),
+               changed=lists("changed"), pair_start=starts("pair_start", used["pairs"][0]),
+               pairs=lists("pairs"), wedge_start=starts("wedge_start", used["wedges"][0]),
+               wedges=lists("wedges"), wedge_uv=lists("wedge_uv"), count=first.count + then.count)
 
 
 #: What :func:`_prepare` hands on: positions ``P0`` (input units) and ``P`` (unit
@@ -313,10 +313,10 @@ def _rules(mesh: Mesh, policy: Policy, image, prep: _Prepared, target_faces, ver
            max_collapses) -> Rules:
     """The policy as the kernel's codes (:data:`methods.engine.state.Rules`)."""
     has_uv = mesh.uv is not None
-    weights = Weights(float(policy.quadric_weight), float(policy.memoryless_weight),
-                      float(policy.canny_weight),
-                      float(0.0 if image is None else image.weight),
-                      float(0.0 if image is None else getattr(image, "entropy_weight", 0.0)))
+    weights = Weights(
+        quadric=float(policy.quadric_weight), memoryless=float(policy.memoryless_weight),
+        canny=float(policy.canny_weight), image=float(0.0 if image is None else image.weight),
+        entropy=float(0.0 if image is None else getattr(image, "entropy_weight", 0.0)))
     nv = len(prep.P)
     limit = max(1, nv) if max_collapses is None else max(0, int(max_collapses))
     return Rules(placement=PLACEMENTS[policy.placement], weights=weights,
@@ -343,7 +343,7 @@ def _terms(policy: Policy, prep: _Prepared, borders, rules: Rules) -> Terms:
                                 axis=1).sum() / 2)
     inv_area = 1.0 / area if area > 0 else 0.0
     face_kappa = _face_kappa(P, F, FW, uv) if rules.use_r5 else np.ones(1)
-    return Terms(borders_arr, inv_area, face_kappa)
+    return Terms(borders=borders_arr, canny_per_area=inv_area, face_kappa=face_kappa)
 
 
 def _canny_units(arrays: MeshArrays, rules: Rules, terms: Terms, images) -> tuple:

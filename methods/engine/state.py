@@ -28,6 +28,7 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
+from numba import njit
 
 #: Faces around one edge kept by ``_edge_faces`` (it still returns the true count; an
 #: edge with more than two faces is rejected as non-manifold before it is used).
@@ -61,6 +62,13 @@ N_KINDS = 3
 
 #: Cost-term weights of a run (all floats; 0 switches a term off).
 Weights = namedtuple("Weights", "quadric memoryless canny image entropy")
+
+
+@njit(cache=True, inline="always")
+def renders(weights):
+    """Whether a rendered cost term is on: Lindstrom & Turk 2000's image term or
+    González et al. 2008's viewpoint entropy, both kept up to date in the views."""
+    return weights.image != 0.0 or weights.entropy != 0.0
 
 #: The mesh under simplification: welded positions ``P`` (nv, 3), quadrics ``Q`` (nv,
 #: 10), faces ``F`` (m, 3) and their wedges ``FW`` (m, 3), ``falive`` (m,), corner
@@ -146,16 +154,21 @@ def new_scratch(nv):
     """A :data:`Scratch` for a mesh of ``nv`` welded vertices."""
     cap = PROFILE_CAP
     profile = Profile(*(np.empty((cap, 3)) for _ in range(6)))
-    wq = WedgeScratch(np.empty(WEDGE_PAIRS_CAP, np.int64), np.empty(WEDGE_PAIRS_CAP, np.int64),
-                      np.empty(WEDGE_TARGETS_CAP, np.int64), np.empty(WEDGE_QUADRIC_SIZE))
-    r5 = R5Scratch(np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3)),
-                   np.empty((cap, 2)), np.empty((cap, 2)), np.empty((cap, 2)),
-                   np.empty(WEDGE_TARGETS_CAP, np.int64), np.empty((WEDGE_TARGETS_CAP, 2)))
-    return Scratch(np.zeros(nv, np.int64), np.zeros(1, np.int64), np.empty(nv, np.int64),
-                   np.empty(nv, np.int64), np.empty(EDGE_FACES_CAP, np.int64),
-                   np.empty(WEDGE_PAIRS_CAP, np.int64), np.empty(WEDGE_PAIRS_CAP, np.int64),
-                   np.empty(QUADRIC_SIZE), np.empty(3), profile, wq, r5,
-                   np.empty((0, 2), np.int64))
+    wq = WedgeScratch(gfrom=np.empty(WEDGE_PAIRS_CAP, np.int64),
+                      gto=np.empty(WEDGE_PAIRS_CAP, np.int64),
+                      targets=np.empty(WEDGE_TARGETS_CAP, np.int64),
+                      g=np.empty(WEDGE_QUADRIC_SIZE))
+    r5 = R5Scratch(tri_a=np.empty((cap, 3)), tri_b=np.empty((cap, 3)), tri_c=np.empty((cap, 3)),
+                   uv_a=np.empty((cap, 2)), uv_b=np.empty((cap, 2)), uv_c=np.empty((cap, 2)),
+                   targets=np.empty(WEDGE_TARGETS_CAP, np.int64),
+                   new_uv=np.empty((WEDGE_TARGETS_CAP, 2)))
+    return Scratch(mark=np.zeros(nv, np.int64), tick=np.zeros(1, np.int64),
+                   nbr_u=np.empty(nv, np.int64), nbr_v=np.empty(nv, np.int64),
+                   efaces=np.empty(EDGE_FACES_CAP, np.int64),
+                   wmap_from=np.empty(WEDGE_PAIRS_CAP, np.int64),
+                   wmap_to=np.empty(WEDGE_PAIRS_CAP, np.int64), qsum=np.empty(QUADRIC_SIZE),
+                   p=np.empty(3), profile=profile, wq=wq, r5=r5,
+                   no_record=np.empty((0, 2), np.int64))
 
 #: The image term's state as the cost and commit functions see it: ``img`` (the image
 #: state of methods.imaging.state), ``tiles`` (its tile index, rebuilt when a commit

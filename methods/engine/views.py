@@ -30,6 +30,7 @@ import numba
 import numpy as np
 
 from methods.engine.initial import own_counters
+from methods.engine.state import renders
 from methods.imaging.region import serve_views
 from methods.imaging.share import (
     JOB_FAILED,
@@ -69,7 +70,7 @@ def views_shared(mesh, rules, scratch, images, threads: int | None = None):
     error a helper met is raised."""
     threads = numba.get_num_threads() if threads is None else int(threads)
     weights = rules.weights
-    rendered = weights.image != 0.0 or weights.entropy != 0.0
+    rendered = renders.py_func(weights)
     helpers = min(threads - 1, MAX_HELPERS) if rendered else 0
     if helpers <= 0:
         yield

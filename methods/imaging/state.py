@@ -72,19 +72,23 @@ ImageScratch = namedtuple("ImageScratch", "mark tick cand t depth ids vslot ov_l
 def _workspace(n_views, nv, m, n_wedges, height, width):
     """An :data:`ImageScratch` for the given sizes."""
     m = max(m, 1)
-    return ImageScratch(
-        np.zeros(m, np.int64), np.zeros(1, np.int64), np.empty(m, np.int64),
-        np.empty((m, ROW)), np.empty((height, width)), np.empty((height, width), np.int32),
-        np.full(nv, -1, np.int64), np.zeros((n_views, _MAX_RING, 4)),
-        np.full(n_wedges, -1, np.int64), np.zeros((NEW_UV_CAP, 2)),
-        np.empty(_MAX_RING, np.int64), np.empty((n_views, 4), np.int64),
-        np.empty(NORMAL_FACES_CAP, np.int64), np.empty(3), np.empty(4), np.empty(4, np.int64),
-        np.empty(AFFECTED_CAP, np.int64), np.zeros(m, np.int64), np.zeros(m, np.int64),
-        np.zeros(m, np.int64), np.zeros(m, np.int64),
-        np.zeros(-(-height // TILE) * -(-width // TILE), np.int64),
-        np.zeros((height * width, 2), np.int64), np.zeros((height, 2), np.int64),
-        np.zeros(n_views), np.zeros(n_views), new_job(), np.zeros(3),
-        np.arange(n_views, dtype=np.int64), new_partials(), np.full(1, np.inf))
+    return ImageScratch(mark=np.zeros(m, np.int64), tick=np.zeros(1, np.int64),
+                        cand=np.empty(m, np.int64), t=np.empty((m, ROW)),
+                        depth=np.empty((height, width)), ids=np.empty((height, width), np.int32),
+                        vslot=np.full(nv, -1, np.int64),
+                        ov_light=np.zeros((n_views, _MAX_RING, 4)),
+                        wslot=np.full(n_wedges, -1, np.int64), new_uv=np.zeros((NEW_UV_CAP, 2)),
+                        ring=np.empty(_MAX_RING, np.int64), rects=np.empty((n_views, 4), np.int64),
+                        buf=np.empty(NORMAL_FACES_CAP, np.int64), n3=np.empty(3), sp=np.empty(4),
+                        box=np.empty(4, np.int64), aff=np.empty(AFFECTED_CAP, np.int64),
+                        amark=np.zeros(m, np.int64), gmark=np.zeros(m, np.int64),
+                        rowof=np.zeros(m, np.int64), rowmark=np.zeros(m, np.int64),
+                        hmark=np.zeros(-(-height // TILE) * -(-width // TILE), np.int64),
+                        holes=np.zeros((height * width, 2), np.int64),
+                        spans=np.zeros((height, 2), np.int64), vcost=np.zeros(n_views),
+                        vdh=np.zeros(n_views), vjob=new_job(), vp=np.zeros(3),
+                        vorder=np.arange(n_views, dtype=np.int64), vpart=new_partials(),
+                        vbound=np.full(1, np.inf))
 
 
 def entropy_state(n_views, m, on=False, background=True, shade=True):
@@ -92,22 +96,26 @@ def entropy_state(n_views, m, on=False, background=True, shade=True):
     counts and scratch (see :func:`entropy_init`); (1, 1) placeholders when the entropy
     term is off."""
     size = m + 1 if on else 1
-    return Entropy(np.zeros((n_views if on else 1, size), np.int64), np.zeros(max(n_views, 1)),
-                   np.zeros(max(n_views, 1), np.int64), np.zeros(size, np.int64),
-                   np.zeros(size, np.int64), np.zeros(size, np.int64), bool(on),
-                   bool(background), bool(shade), np.zeros(1), np.zeros(1, np.int64))
+    return Entropy(counts=np.zeros((n_views if on else 1, size), np.int64),
+                   sums=np.zeros(max(n_views, 1)), totals=np.zeros(max(n_views, 1), np.int64),
+                   dcnt=np.zeros(size, np.int64), emark=np.zeros(size, np.int64),
+                   touched=np.zeros(size, np.int64), on=bool(on), background=bool(background),
+                   shade=bool(shade), delta=np.zeros(1), etick=np.zeros(1, np.int64))
 
 
 def dummy_state():
     """An image state of the right types for engine runs without the image term."""
-    img = ImageState(np.zeros((1, 4, 4)), np.zeros((1, 3)), np.zeros(1, np.bool_),
-                     np.zeros((1, 1, 1)), np.zeros((1, 1, 1)), np.zeros((1, 1, 4)),
-                     np.zeros((1, 1, 4), np.int32), np.zeros((1, 3)), np.zeros((1, 1, 4)),
-                     Shading(0.0, 0.0, 0.0, 0.0, 0.0, False, False, False),
-                     np.zeros((1, 1, 3), np.uint8), np.zeros(len(STAT_NAMES), np.int64),
-                     np.zeros((1, 1, 1), np.int32), np.zeros((1, 1, 1)), entropy_state(1, 1))
-    tiles = Tiles(np.zeros((1, 2), np.int64), np.zeros((1, 1), np.int64),
-                  np.zeros(1, np.int32), np.zeros((1, 1, 4), np.int32))
+    img = ImageState(M=np.zeros((1, 4, 4)), eyes=np.zeros((1, 3)), cull=np.zeros(1, np.bool_),
+                     Y0=np.zeros((1, 1, 1)), Y=np.zeros((1, 1, 1)), S=np.zeros((1, 1, 4)),
+                     fbox=np.zeros((1, 1, 4), np.int32), vn=np.zeros((1, 3)),
+                     L=np.zeros((1, 1, 4)),
+                     shading=Shading(ambient=0.0, diffuse=0.0, ks=0.0, shininess=0.0, albedo=0.0,
+                                     specular=False, gouraud=False, textured=False),
+                     texture=np.zeros((1, 1, 3), np.uint8),
+                     stats=np.zeros(len(STAT_NAMES), np.int64), IDS=np.zeros((1, 1, 1), np.int32),
+                     DZ=np.zeros((1, 1, 1)), ent=entropy_state(1, 1))
+    tiles = Tiles(ptr=np.zeros((1, 2), np.int64), cnt=np.zeros((1, 1), np.int64),
+                  items=np.zeros(1, np.int32), ibox=np.zeros((1, 1, 4), np.int32))
     return img, tiles, _workspace(1, 1, 1, 1, 1, 1)
 
 
@@ -135,16 +143,19 @@ def new_state(M, eyes, cull, Y0, shading, texture, nv, m, n_wedges, entropy=None
         counts (:func:`entropy_init` fills them after :func:`full_render`).
     """
     n_views, height, width = Y0.shape
-    img = ImageState(
-        np.ascontiguousarray(M, np.float64), np.ascontiguousarray(eyes, np.float64),
-        np.ascontiguousarray(cull, np.bool_), np.ascontiguousarray(Y0, np.float64),
-        np.full(Y0.shape, 128.0) if entropy is None or entropy[1] else np.zeros(Y0.shape),
-        np.zeros((n_views, nv, 4)), np.zeros((n_views, m, 4), np.int32), np.zeros((nv, 3)),
-        np.zeros((n_views, nv, 4)), shading, np.ascontiguousarray(texture, np.uint8),
-        np.zeros(len(STAT_NAMES), np.int64), np.empty(Y0.shape, np.int32),
-        np.empty(Y0.shape),
-        entropy_state(n_views, m) if entropy is None else
-        entropy_state(n_views, m, True, entropy[0], entropy[1]))
+    img = ImageState(M=np.ascontiguousarray(M, np.float64),
+                     eyes=np.ascontiguousarray(eyes, np.float64),
+                     cull=np.ascontiguousarray(cull, np.bool_),
+                     Y0=np.ascontiguousarray(Y0, np.float64),
+                     Y=(np.full(Y0.shape, 128.0) if entropy is None or entropy[1]
+                        else np.zeros(Y0.shape)),
+                     S=np.zeros((n_views, nv, 4)), fbox=np.zeros((n_views, m, 4), np.int32),
+                     vn=np.zeros((nv, 3)), L=np.zeros((n_views, nv, 4)), shading=shading,
+                     texture=np.ascontiguousarray(texture, np.uint8),
+                     stats=np.zeros(len(STAT_NAMES), np.int64), IDS=np.empty(Y0.shape, np.int32),
+                     DZ=np.empty(Y0.shape),
+                     ent=(entropy_state(n_views, m) if entropy is None
+                          else entropy_state(n_views, m, True, entropy[0], entropy[1])))
     return img, _workspace(n_views, nv, m, n_wedges, height, width)
 
 

@@ -57,7 +57,7 @@ def build_tiles(fbox, falive, tile, nx, ny):
                     i = ty * nx + tx
                     items[ptr[h, i] + cnt[h, i]] = f
                     cnt[h, i] += 1
-    return Tiles(ptr, cnt, items, ibox)
+    return Tiles(ptr=ptr, cnt=cnt, items=items, ibox=ibox)
 
 
 @njit(cache=True)
