@@ -132,6 +132,7 @@ def make_barrel(around: int = 32, rows: int = 12, rings: int = 6,
     theta[-1] = 0.0  # bit-equal to the first, so the wrap-around is a seam, not a hole
     z = np.linspace(-height / 2, height / 2, rows + 1)
     bulge = radius * (1.0 + 0.12 * np.cos(np.pi * z / height))  # the rims keep radius
+    rim_r = bulge[0]
     cols = np.arange(around + 1)
     cth, sth = np.cos(theta), np.sin(theta)
     body = np.stack([bulge[:, None] * cth[None, :], bulge[:, None] * sth[None, :],
@@ -147,7 +148,8 @@ def make_barrel(around: int = 32, rows: int = 12, rings: int = 6,
     body_faces = len(faces[0])
     count = len(positions[0])
     for top in (False, True):
-        lid, lid_uv, tris = _barrel_lid(body[-1 if top else 0, :-1], rings, top)
+        lid, lid_uv, tris = _barrel_lid(body[-1 if top else 0, :-1], rim_r, cth[:-1],
+                                        sth[:-1], rings, top)
         positions.append(lid)
         uvs.append(lid_uv)
         faces.append(tris + count)
@@ -160,17 +162,16 @@ def make_barrel(around: int = 32, rows: int = 12, rings: int = 6,
     return mesh
 
 
-def _barrel_lid(rim: np.ndarray, rings: int, top: bool):
-    """A barrel's lid of ``rings`` rings inside ``rim`` (the body's end ring, which ring
-    ``rings`` copies bit for bit): (positions, UVs, triangles), facing up if ``top``."""
+def _barrel_lid(rim: np.ndarray, rim_r: float, cth: np.ndarray, sth: np.ndarray,
+                rings: int, top: bool):
+    """A barrel's lid of ``rings`` rings inside ``rim`` (the body's end ring of radius
+    ``rim_r``, which ring ``rings`` copies bit for bit; ``cth``, ``sth`` its angles'
+    cosines and sines): (positions, UVs, triangles), facing up if ``top``."""
     around = len(rim)
     zc = rim[0, 2]
-    theta = np.linspace(0.0, 2 * np.pi, around + 1)[:-1]
-    cth, sth = np.cos(theta), np.sin(theta)
     # ring k = 0 is the centre, k = rings the rim
     pts = [np.array([[0.0, 0.0, zc]])]
     lid_uv = [np.array([[0.75, 0.5]])]
-    rim_r = np.hypot(rim[0, 0], rim[0, 1])
     for k in range(1, rings + 1):
         rr = rim_r * k / rings
         pts.append(rim.copy() if k == rings else

@@ -409,11 +409,10 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
 def _affected(u, v, p, P, topology, img, iws):
     """The set-up of :func:`image_cost` for collapsing ``u`` into ``v`` at ``p``
     (``topology``: the mesh's F, vhead, cnext, falive): the faces around the edge in
-    ``iws.aff[:na]`` (marked in ``gmark``), with the faces whose shading changes
-    after them up to ``ns`` (marked in ``amark``), and under
-    Gouraud shading the ``nr`` vertices whose normal changes in ``iws.ring`` (their
-    lighting in ``iws.ov_light``; the caller frees their ``vslot``). Returns (na, ns,
-    nr)."""
+    ``iws.aff[:na]`` (marked in ``gmark``), with the faces whose shading changes after
+    them up to ``ns`` (marked in ``amark``), and under Gouraud shading the ``nr``
+    vertices whose normal changes in ``iws.ring`` (their lighting in ``iws.ov_light``;
+    the caller frees their ``vslot``). Returns (na, ns, nr)."""
     F, vhead, cnext, falive = topology
     mark, tick, vslot, aff = iws.mark, iws.tick, iws.vslot, iws.aff
     # the faces around the edge ([[e]]; those holding both ends disappear)

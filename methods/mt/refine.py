@@ -179,7 +179,7 @@ def _raising(budget, n_faces, err, arcs, cut, heaps):
 
 @njit(cache=True)
 def _refine(budget, err, n_faces, arcs, cut):
-    """simplifyBudget of §5.1 on the cut ``applied``; returns (faces, raised, lowered).
+    """simplifyBudget of §5.1 on ``cut``; returns (faces, raised, lowered).
 
     R holds applied nodes whose parents are all refined (candidates to raise), keyed
     by -error; L holds refined nodes whose children are all applied (candidates to
