@@ -1,7 +1,7 @@
 """``canny-texture``: an engine cost plus the texture-border penalty of González,
 Castelló & Chover 2007 (seed 003, §3, equations 1-2, Figure 3).
 
-The texture's Canny borders are found once (:func:`methods.engine.canny.texture_borders`,
+The texture's Canny borders are found once (:func:`methods.engine.terms.canny.texture_borders`,
 sigma 0.75, thresholds 0.5 / 0.6 of the maximum gradient magnitude, MATLAB's
 convention). While simplifying, an edge whose UV segment crosses a border pixel, in
 any of its faces' UV charts, costs extra: equation 2 adds to its base cost c_e the area
@@ -109,7 +109,7 @@ class CannyTexture(Method):
                       texture_weight=p.texture_weight)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
-        from methods.engine.canny import texture_borders
+        from methods.engine.terms.canny import texture_borders
 
         if mesh.uv is None or mesh.texture is None:
             raise InputError(f"{mesh.name}: canny-texture needs a texture and UVs; use "
@@ -130,7 +130,7 @@ class CannyTexture(Method):
 def _penalised_edges_image(mesh: Mesh, borders):
     """The border image with the input's penalised edges in red (the paper's Figure 3
     input), magnified so thin lines stay visible on small textures."""
-    from methods.engine.canny import border_image_with_edges, edge_penalties
+    from methods.engine.terms.canny import border_image_with_edges, edge_penalties
 
     _, _, crossing = edge_penalties(mesh, borders=borders)
     scale = max(1, 1024 // max(borders.shape))
@@ -139,7 +139,7 @@ def _penalised_edges_image(mesh: Mesh, borders):
 
 def crossing_share(mesh: Mesh, borders) -> tuple[int, float]:
     """(number, share) of the mesh's welded edges whose UV segment crosses a border."""
-    from methods.engine.canny import edge_penalties
+    from methods.engine.terms.canny import edge_penalties
 
     _, _, crossing = edge_penalties(mesh, borders=borders)
     return int(crossing.sum()), float(crossing.mean()) if len(crossing) else 0.0

@@ -312,7 +312,7 @@ class EntropyTwin(Method):
         borders = None
         stats = {"canny_term": canny}
         if canny:
-            from methods.engine.canny import texture_borders
+            from methods.engine.terms.canny import texture_borders
 
             borders = texture_borders(mesh.texture)
             stats["border_pixels"] = int(borders.sum())

@@ -6,11 +6,11 @@ Summarised in Lindstrom & Turk 2000, §4.1. No error is carried from the origina
 each collapse is placed and costed from the current triangles around the edge only —
 volume preservation, boundary preservation, then volume and boundary optimisation and
 triangle shape, added as linear constraints while they are α-compatible
-(:mod:`methods.engine.lindstrom_turk`). The cost is the same volume and boundary error at the
+(:mod:`methods.engine.terms.lindstrom_turk`). The cost is the same volume and boundary error at the
 chosen point.
 
 New texture coordinates come from the R^5 oriented volumes of Lindstrom & Turk 2000,
-§4.1.1 (:func:`methods.engine.lindstrom_turk.r5_texture_coordinates`), computed for every
+§4.1.1 (:func:`methods.engine.terms.lindstrom_turk.r5_texture_coordinates`), computed for every
 wedge around the merged vertex from the triangles of its own texture patch, with κ per
 patch; a degenerate patch profile falls back to interpolation along the edge.
 """

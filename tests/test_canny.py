@@ -1,4 +1,4 @@
-"""Tests of methods.engine.canny: Canny texture borders, UV-segment traversal, edge penalties.
+"""Tests of methods.engine.terms.canny: Canny texture borders, UV-segment traversal, edge penalties.
 
 The traversal kernel is checked against two slow pure-Python oracles: an exact one that
 cuts the segment at every pixel edge it crosses and takes the pixel of each piece's
@@ -15,8 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.core.mesh import Mesh
-from methods.engine import canny
-from methods.engine.canny import (
+from methods.engine.terms import canny
+from methods.engine.terms.canny import (
     border_image_with_edges,
     edge_penalties,
     segment_crosses_border,

@@ -11,7 +11,8 @@ import pytest
 
 from bench.core.mesh import Mesh
 from methods.engine.policy import Policy
-from methods.engine.quadrics import (
+from methods.engine.simplify import simplify_mesh
+from methods.engine.terms.quadric import (
     _boundary_corners,
     _optimal_point,
     best_of_ends,
@@ -19,7 +20,6 @@ from methods.engine.quadrics import (
     initial_quadrics,
     quadric_error,
 )
-from methods.engine.simplify import simplify_mesh
 from methods.engine.topology import _corner_lists
 
 
@@ -303,7 +303,7 @@ def test_corner_lists_link_every_corner_once():
 # -- Garland-Heckbert 1998 wedge quadrics --------------------------------------------------
 
 def test_wedge_quadric_is_area_times_squared_distance_to_the_lifted_plane():
-    from methods.engine.quadrics import wedge_quadrics
+    from methods.engine.terms.quadric import wedge_quadrics
 
     rng = np.random.default_rng(11)
     P = rng.normal(size=(3, 3))
@@ -324,7 +324,7 @@ def test_wedge_quadric_is_area_times_squared_distance_to_the_lifted_plane():
 
 
 def test_reduced_wedge_quadric_is_the_minimum_over_uv():
-    from methods.engine.quadrics import _add_reduced, _uv_minimiser
+    from methods.engine.terms.quadric import _add_reduced, _uv_minimiser
 
     rng = np.random.default_rng(12)
     M = rng.normal(size=(6, 6))
@@ -465,8 +465,8 @@ def test_wedge_quadrics_through_collapses_are_sums_over_the_original_faces():
     vertex's two and a face vertex's one), whose unpaired wedges keep their quadrics."""
     from bench.catalog.gamemodels import make_crate
     from methods.engine.collapse import _collapse
-    from methods.engine.cost import _edge_quadric
     from methods.engine.state import N_KINDS
+    from methods.engine.terms.quadric import _edge_quadric
 
     mesh = make_crate(3)
     policy = Policy(texture_weight=1.0)

@@ -117,7 +117,7 @@ def _measured_units(mesh):
     """The engine's inputs for canny-texture (base-cost units, texture quadrics) on
     ``mesh``, and what :func:`_canny_units` measures: (arrays, terms, scaled terms,
     statistics, initial base costs, areas of each edge's faces)."""
-    from methods.engine.canny import texture_borders
+    from methods.engine.terms.canny import texture_borders
     from methods.engine.initial import edge_areas, first_costs
     from methods.engine.policy import Policy
     from methods.engine.simplify import (

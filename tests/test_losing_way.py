@@ -1,5 +1,5 @@
 """The second way of a half-edge collapse stops once it is sure to lose
-(methods.engine.cost._both_ways): the verdict and the cheaper cost are those of
+(methods.engine.terms.rendered._both_ways): the verdict and the cheaper cost are those of
 rendering every view of both ways."""
 
 from __future__ import annotations
@@ -41,17 +41,17 @@ def _captured_state(monkeypatch, entropy, image):
 
 
 def test_the_losing_way_stops_early_with_the_same_verdict(monkeypatch):
-    from methods.engine import cost
     from methods.engine.initial import candidate_edges
+    from methods.engine.terms import rendered
 
     mesh, rules, terms, scratch, images = _captured_state(monkeypatch, 1.0, 0.0)
     edges = candidate_edges(mesh, scratch)
     P = mesh.P
     stopped = 0
     for a, b in edges:
-        full_a = cost._view_cost(b, a, P[a], mesh, rules, terms, scratch, images, np.inf)
-        full_b = cost._view_cost(a, b, P[b], mesh, rules, terms, scratch, images, np.inf)
-        ca, cb = cost._both_ways(a, b, 0.0, 0.0, mesh, rules, terms, scratch, images)
+        full_a = rendered._view_cost(b, a, P[a], mesh, rules, terms, scratch, images, np.inf)
+        full_b = rendered._view_cost(a, b, P[b], mesh, rules, terms, scratch, images, np.inf)
+        ca, cb = rendered._both_ways(a, b, 0.0, 0.0, mesh, rules, terms, scratch, images)
         assert (ca < cb) == (full_a < full_b)
         assert min(ca, cb) == min(full_a, full_b)
         for got, full in ((ca, full_a), (cb, full_b)):
@@ -62,10 +62,10 @@ def test_the_losing_way_stops_early_with_the_same_verdict(monkeypatch):
 
 def test_no_early_stop_with_the_image_term(monkeypatch):
     """Equation 8's views can lower the cost, so no sum of them is a bound."""
-    from methods.engine import cost
+    from methods.engine.terms import rendered
 
     _, rules, _, _, _ = _captured_state(monkeypatch, 1.0, 1.0)
-    assert cost._losing_sum(0.5, 0.0, rules.weights) == np.inf
+    assert rendered._losing_sum(0.5, 0.0, rules.weights) == np.inf
 
 
 finite = st.floats(min_value=0.0, max_value=1e6, allow_nan=False)
@@ -79,11 +79,11 @@ finite = st.floats(min_value=0.0, max_value=1e6, allow_nan=False)
 def test_a_sum_past_the_losing_sum_loses_in_any_order(ca, base, weight, sums, split):
     """Whatever order the threads add the views' |dH| in, a running sum past the bound
     means the cost summed in view order is above ``ca``."""
-    from methods.engine import cost
     from methods.engine.state import Weights
+    from methods.engine.terms import rendered
 
     weights = Weights(0.0, 0.0, 0.0, 0.0, weight)
-    bound = cost._losing_sum(ca, base, weights)
+    bound = rendered._losing_sum(ca, base, weights)
     threads = [0.0, 0.0]  # two threads' running sums, as the views' helpers keep them
     for i, s in enumerate(sums):
         threads[i >= split] += s

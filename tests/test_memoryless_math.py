@@ -1,4 +1,4 @@
-"""Tests of methods.engine.lindstrom_turk against slow NumPy references and exact invariants.
+"""Tests of methods.engine.terms.lindstrom_turk against slow NumPy references and exact invariants.
 
 The references recompute each quantity another way: volumes with ``np.linalg.det``, the
 R⁵ minors as determinants of the lifted difference matrix evaluated at three (s, t)
@@ -14,7 +14,7 @@ from itertools import combinations
 import numpy as np
 import pytest
 
-from methods.engine.lindstrom_turk import (
+from methods.engine.terms.lindstrom_turk import (
     ALPHA_DEG,
     ZERO_TOL,
     _add_if_alpha_compatible,

@@ -21,11 +21,12 @@ from hypothesis import strategies as st
 
 from bench.catalog.gamemodels import make_crate
 from methods.engine.collapse import _collapse
-from methods.engine.cost import _edge_quadric, _evaluate
+from methods.engine.cost import _evaluate
 from methods.engine.loop import _check_candidate
 from methods.engine.policy import VALID, Policy
 from methods.engine.simplify import _prepare, _quadrics, _rules, _terms
 from methods.engine.state import N_KINDS, Images, new_scratch
+from methods.engine.terms.quadric import _edge_quadric
 from methods.imaging.state import dummy_state
 
 TEXTURE_WEIGHT = 1.0

@@ -36,7 +36,7 @@ optimal       the quadric minimiser, falling back to the best of the endpoints a
               midpoint when the quadric is singular (Garland & Heckbert 1997)
 endpoints     half-edge collapse: both directions are tried, the cheaper is kept
 midpoint      the middle of the edge
-memoryless    Lindstrom & Turk 1998 constraints (methods.engine.lindstrom_turk)
+memoryless    Lindstrom & Turk 1998 constraints (methods.engine.terms.lindstrom_turk)
 ============  =========================================================================
 
 ============  =========================================================================
@@ -95,8 +95,13 @@ taken at its stored cost (``verify=True`` checks that this equals a fresh evalua
 from __future__ import annotations
 
 from methods.engine.policy import PLACEMENTS, REJECTIONS, STOP_REASONS, EngineResult, Policy
-from methods.engine.quadrics import face_quadrics, initial_quadrics, quadric_error, wedge_quadrics
 from methods.engine.simplify import simplify_mesh
+from methods.engine.terms.quadric import (
+    face_quadrics,
+    initial_quadrics,
+    quadric_error,
+    wedge_quadrics,
+)
 from methods.engine.wedges import barycentric_uv, corner_wedges
 
 __all__ = ["Policy", "EngineResult", "simplify_mesh", "PLACEMENTS", "STOP_REASONS", "REJECTIONS",

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from methods.engine.quadrics import _uv_minimiser
 from methods.engine.state import QUADRIC_SIZE, WEDGE_QUADRIC_SIZE, WEDGE_TARGETS_CAP
+from methods.engine.terms.quadric import _uv_minimiser
+from methods.engine.terms.r5 import _r5_update
 from methods.engine.topology import _compact, _edge_faces, _third
 from methods.engine.wedges import (
     _count_kinds,
     _edge_parameter,
-    _r5_update,
     _uv_correction,
     _wedge_pairs,
     _wedge_targets,

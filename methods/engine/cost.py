@@ -7,16 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from methods.engine.canny import _walk
 from methods.engine.capacity import over_capacity
-from methods.engine.lindstrom_turk import (
-    ALPHA_DEG,
-    BOUNDARY_WEIGHT,
-    SHAPE_WEIGHT,
-    VOLUME_WEIGHT,
-    lt_cost,
-    lt_placement,
-)
 from methods.engine.policy import (
     BOUNDARY_RULE,
     END_FREE,
@@ -32,27 +23,20 @@ from methods.engine.policy import (
     VERTEX_ORDINARY,
     VERTEX_SEAM,
 )
-from methods.engine.quadrics import (
-    _add_reduced,
-    _group_quadric,
-    _optimal_point,
-    best_of_ends,
-    quadric_error,
+from methods.engine.state import renders
+from methods.engine.terms.canny import _canny_penalty
+from methods.engine.terms.lindstrom_turk import (
+    ALPHA_DEG,
+    BOUNDARY_WEIGHT,
+    SHAPE_WEIGHT,
+    VOLUME_WEIGHT,
+    lt_cost,
+    lt_placement,
 )
-from methods.engine.state import QUADRIC_SIZE, renders
-from methods.engine.topology import _edge_faces, _faces_area, _gather_profile
-from methods.engine.wedges import (
-    _edge_parameter,
-    _is_seam_edge,
-    _is_seam_vertex,
-    _r5_compute,
-    _wedge_pairs,
-    _wedge_targets,
-    corner_wedges,
-)
-from methods.imaging.entropy import fan_pixels
-from methods.imaging.region import image_cost, rank_views
-from metrics.shading import BACKGROUND
+from methods.engine.terms.quadric import _edge_quadric, _optimal_point, best_of_ends, quadric_error
+from methods.engine.terms.rendered import _both_ways, _view_cost
+from methods.engine.topology import _gather_profile
+from methods.engine.wedges import _is_seam_edge, _is_seam_vertex
 
 
 @njit(cache=True, inline="always")
@@ -95,26 +79,6 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
             mesh.falive, scratch.efaces, terms.canny_per_area, scratch.no_record)
     return _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
                            terms, scratch, images)
-
-
-@njit(cache=True, inline="always")
-def _edge_quadric(a, b, mesh, scratch):
-    """``scratch.qsum`` = the quadric of edge (a, b): the endpoints' vertex quadrics,
-    plus with wedge quadrics (Garland-Heckbert 1998, over (x, y, z, u, v)) each merged
-    wedge's group quadric reduced at its UV."""
-    Q, qsum, WQ = mesh.Q, scratch.qsum, mesh.WQ
-    for i in range(QUADRIC_SIZE):
-        qsum[i] = Q[a, i] + Q[b, i]
-    if WQ.shape[0] > 1:
-        gfrom, gto, targets, g = (scratch.wq.gfrom, scratch.wq.gto, scratch.wq.targets,
-                                  scratch.wq.g)
-        npairs = _wedge_pairs(a, b, mesh.F, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive,
-                              scratch.efaces, gfrom, gto)
-        nt = _wedge_targets(a, b, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive, gfrom, gto,
-                            npairs, targets)
-        for i in range(nt):
-            _group_quadric(targets[i], WQ, gfrom, gto, npairs, g)
-            _add_reduced(g, mesh.uv[targets[i]], qsum)
 
 
 @njit(cache=True, inline="always")
@@ -246,111 +210,6 @@ def _guarded_optimal_point(a, b, l2, mesh, qsum, out_p):
     _optimal_point(qsum, P[a], P[b], out_p)
     if not _near_ring(a, b, l2, mesh, out_p, RING_BOX_MARGIN):
         best_of_ends(qsum, P[a], P[b], out_p)
-
-
-@njit(cache=True, inline="always")
-def _both_ways(a, b, ca, cb, mesh, rules, terms, scratch, images):
-    """``ca`` and ``cb`` plus the rendered cost of keeping a (removing b) and of keeping
-    b. The way that redraws fewer pixels goes first (:func:`_first_then_other`)."""
-    vhead, cnext, falive, ent = mesh.vhead, mesh.cnext, mesh.falive, images.img.ent
-    if fan_pixels(b, vhead, cnext, falive, ent) <= fan_pixels(a, vhead, cnext, falive, ent):
-        return _first_then_other(b, a, ca, cb, mesh, rules, terms, scratch, images)
-    cb, ca = _first_then_other(a, b, cb, ca, mesh, rules, terms, scratch, images)
-    return ca, cb
-
-
-@njit(cache=True, inline="always")
-def _first_then_other(u, v, first, other, mesh, rules, terms, scratch, images):
-    """``first`` plus the rendered cost of collapsing u into v, and ``other`` plus that
-    of collapsing v into u; the latter stops once it is sure to cost more (it is then
-    inf: the verdict, the cheaper cost and the placement are those of rendering all its
-    views), taking first the views where the first way changed the most."""
-    P = mesh.P
-    first += _view_cost(u, v, P[v], mesh, rules, terms, scratch, images, np.inf)
-    bound = _losing_sum(first, other, rules.weights)
-    if bound < np.inf:
-        rank_views(images.iws)
-    other += _view_cost(v, u, P[u], mesh, rules, terms, scratch, images, bound)
-    return first, other
-
-
-#: The smallest normal double (np.finfo(float).tiny).
-_TINY = 2.2250738585072014e-308
-
-
-@njit(cache=True, inline="always")
-def _losing_sum(ca, base, weights):
-    """The sum of |dH| past which a cost ``base`` + ``weights.entropy`` × that sum is
-    sure to exceed ``ca``, with a margin far above rounding (so the sum's order does
-    not matter); inf when the rendered cost is not such a sum (an image term's view
-    changes can be negative)."""
-    if weights.image != 0.0 or not weights.entropy > 0.0:
-        return np.inf
-    # relative, and never below the smallest normal double: costs of a few subnormals
-    # would otherwise leave no margin at all (0.5 * 5e-324 rounds to 0)
-    slack = 1e-9 * (abs(ca) + abs(base)) + _TINY
-    return (ca - base + slack) / weights.entropy * (1.0 + 1e-9)
-
-
-@njit(cache=True)
-def _view_cost(u, v, p, mesh, rules, terms, scratch, images, bound):
-    """The rendered cost terms of collapsing u into v at p, from one re-render of the
-    affected rectangles: ``weights.image`` × equation 8 of Lindstrom & Turk 2000 plus
-    ``weights.entropy`` × the sum over views of |change of the viewpoint entropy|
-    (González et al. 2008, §3), which :func:`methods.imaging.region.image_cost` leaves in
-    the image state; inf once that sum passes ``bound`` (then not all views are
-    rendered)."""
-    weights = rules.weights
-    cost = weights.image * _image_term(u, v, p, mesh, rules, terms, scratch, images, bound)
-    if weights.entropy != 0.0:
-        cost += weights.entropy * images.img.ent.delta[0]
-    return cost
-
-
-@njit(cache=True)
-def _image_term(u, v, p, mesh, rules, terms, scratch, images, bound):
-    """Equation 8 of Lindstrom & Turk 2000 for collapsing u into v at p, with the
-    texture coordinates the collapse would give (methods.imaging.region.image_cost,
-    which stops once the views' |dH| passes ``bound``)."""
-    P, F, FW, uv, falive, vhead, cnext = (mesh.P, mesh.F, mesh.FW, mesh.uv, mesh.falive,
-                                          mesh.vhead, mesh.cnext)
-    wfrom, wto, efaces = scratch.wmap_from, scratch.wmap_to, scratch.efaces
-    targets, new_uv = scratch.r5.targets, scratch.r5.new_uv
-    npairs = 0
-    nt = 0
-    if rules.has_uv:
-        npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wfrom, wto)
-        t_edge = _edge_parameter(u, v, p, P)
-        if rules.use_r5:
-            nt = _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, terms.face_kappa,
-                             wfrom, wto, npairs, t_edge, scratch.r5)
-        else:  # merged wedges interpolated along the edge, as _collapse does
-            for i in range(npairs):
-                targets[i] = wto[i]
-                for d in range(2):
-                    new_uv[i, d] = (1.0 - t_edge) * uv[wfrom[i], d] + t_edge * uv[wto[i], d]
-            nt = npairs
-    return image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, images.img, images.tiles,
-                      images.iws, wfrom, wto, npairs, targets, nt, new_uv, float(BACKGROUND),
-                      bound)
-
-
-@njit(cache=True)
-def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, per_area,
-                   no_record):
-    """González et al. 2007, equations 1-2: (area of the edge's faces) × ``per_area``
-    when the edge's UV segment, in any of its faces' charts, crosses a texture border;
-    0 otherwise. ``per_area`` is 1 / the original's total area (equation 2's ratio) or
-    that ratio in the base cost's units (``Terms.canny_per_area``)."""
-    k = _edge_faces(a, b, F, vhead, cnext, falive, efaces)
-    h, w = borders.shape
-    for i in range(min(k, efaces.shape[0])):
-        wa, wb = corner_wedges(F, FW, efaces[i], a, b)
-        _, hit = _walk(uv[wa, 0] * w, uv[wa, 1] * h, uv[wb, 0] * w, uv[wb, 1] * h,
-                       borders, no_record)
-        if hit:
-            return _faces_area(k, efaces, P, F) * per_area
-    return 0.0
 
 
 @njit(cache=True, _nrt=False)

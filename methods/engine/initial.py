@@ -2,10 +2,11 @@
 many threads as the job may use.
 
 Before any collapse the costs of the edges do not depend on each other: each
-evaluation reads the mesh, the cost terms' inputs and the images, and writes only its
-scratch (and counters). So the edges are cut into chunks of :data:`CHUNK`, and each of
-``threads`` Python threads takes the next chunk and costs it with its own copy of the
-scratch (:func:`_worker_state`) in :func:`_cost_range`, which releases the GIL. Every
+evaluation reads the mesh, the cost terms' inputs (:mod:`methods.engine.terms`) and the
+images, and writes only its scratch (and counters). So the edges are cut into chunks of
+:data:`CHUNK`, and each of ``threads`` Python threads takes the next chunk and costs it
+with its own copy of the scratch (:func:`_worker_state`) in :func:`_cost_range`, which
+releases the GIL. Every
 edge's cost, kept end and placement land in its own row of the output, so what the
 loop queues (in edge order, :func:`methods.engine.loop._collect_candidates`) is the
 serial pass's to the bit, whatever the number of threads and however the chunks were

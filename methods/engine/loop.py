@@ -75,7 +75,8 @@ def _push(heap, cost, a, b, sa, sb, p, keep):
 
 @njit(cache=True, inline="always")
 def _cost(a, b, mesh, rules, terms, scratch, images, queue):
-    """:func:`_evaluate` of edge (a, b), counted; the placement lands in ``scratch.p``."""
+    """:func:`_evaluate` of edge (a, b) (the weighted terms of
+    :mod:`methods.engine.terms`), counted; the placement lands in ``scratch.p``."""
     cost, keep = _evaluate(a, b, mesh, rules, terms, scratch, images)
     queue.tally[EVALUATIONS] += 1
     return cost, keep

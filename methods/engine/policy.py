@@ -114,7 +114,7 @@ class Policy:
     quadric_weight : float
         Weight of the Garland–Heckbert quadric error.
     memoryless_weight : float
-        Weight of the Lindstrom–Turk cost (methods.engine.lindstrom_turk).
+        Weight of the Lindstrom–Turk cost (methods.engine.terms.lindstrom_turk).
     canny_weight : float
         Weight of the González 2007 texture-border penalty (needs ``borders``).
     canny_units : str

@@ -17,7 +17,6 @@ from methods.engine.initial import edge_areas, first_costs
 from methods.engine.loop import _run
 from methods.engine.parts import face_groups
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
-from methods.engine.quadrics import _boundary_corners, initial_quadrics, wedge_quadrics
 from methods.engine.scale import scaled, workable_exponent
 from methods.engine.state import (
     KIND_STRANDED,
@@ -37,9 +36,10 @@ from methods.engine.state import (
     Weights,
     new_scratch,
 )
+from methods.engine.terms.quadric import _boundary_corners, initial_quadrics, wedge_quadrics
+from methods.engine.terms.r5 import _face_kappa
 from methods.engine.topology import _corner_lists, vboundary_of
 from methods.engine.views import views_shared
-from methods.engine.wedges import _face_kappa
 from methods.imaging.state import dummy_state, keeps_luminance
 
 #: The default policy (one shared instance: a Policy is never modified).
@@ -156,7 +156,7 @@ def _check_canny(mesh: Mesh, policy: Policy, borders, image) -> None:
     ``base-cost`` units."""
     if policy.canny_weight != 0.0 and (borders is None or mesh.uv is None):
         raise ValueError("the Canny term needs texture borders and UVs; pass borders= "
-                         "(methods.engine.canny.texture_borders) for a mesh with UVs")
+                         "(methods.engine.terms.canny.texture_borders) for a mesh with UVs")
     if policy.canny_weight != 0.0 and policy.canny_units == "base-cost" and image is not None:
         raise ValueError("canny_units='base-cost' measures the base cost without "
                          "rendering; it does not combine with the image term")

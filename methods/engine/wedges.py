@@ -8,7 +8,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from methods.engine.lindstrom_turk import ALPHA_DEG, r5_texture_coordinates, texture_kappa
 from methods.engine.state import KIND_STRANDED, KIND_STRANDED_WEDGES, KIND_TWIN
 from methods.engine.topology import _edge_faces, _has_vertex
 
@@ -126,74 +125,6 @@ def _mapped(w, wmap_from, wmap_to, npairs):
 
 
 @njit(cache=True)
-def _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from, wmap_to,
-               npairs, t_edge, r5):
-    """Set the new UVs of :func:`_r5_compute`."""
-    targets, new_uv = r5.targets, r5.new_uv
-    nt = _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from,
-                     wmap_to, npairs, t_edge, r5)
-    for ti in range(nt):
-        uv[targets[ti], 0] = new_uv[ti, 0]
-        uv[targets[ti], 1] = new_uv[ti, 1]
-
-
-@njit(cache=True)
-def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_from, wmap_to,
-                npairs, t_edge, r5):
-    """New UVs of every wedge around the merged vertex by Lindstrom & Turk 2000's R^5
-    oriented volumes (§4.1.1), each from the triangles of its own texture patch around
-    the edge (the removed ones included); a wedge whose patch profile is degenerate
-    falls back to interpolation along the edge. Fills the targets and new UVs of ``r5``
-    (methods.engine.state.R5Scratch); returns how many."""
-    tri_a, tri_b, tri_c = r5.tri_a, r5.tri_b, r5.tri_c
-    uv_a, uv_b, uv_c = r5.uv_a, r5.uv_b, r5.uv_c
-    targets, new_uv = r5.targets, r5.new_uv
-    cap = tri_a.shape[0]
-    nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)
-    for ti in range(nt):
-        t = targets[ti]
-        n = 0
-        kappa = 1.0
-        for side in range(2):
-            x = u if side == 0 else v
-            c = vhead[x]
-            while c != -1:
-                f = c // 3
-                on_edge = (F[f, 0] == u or F[f, 1] == u or F[f, 2] == u) and \
-                          (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v)
-                if falive[f] and not (side == 1 and on_edge) and \
-                        _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs) == t:
-                    if n == cap:
-                        raise ValueError("a texture patch around a collapse has more "
-                                         "triangles than PROFILE_CAP (methods.engine.state)")
-                    for d in range(3):
-                        tri_a[n, d] = P[F[f, 0], d]
-                        tri_b[n, d] = P[F[f, 1], d]
-                        tri_c[n, d] = P[F[f, 2], d]
-                    for d in range(2):
-                        uv_a[n, d] = uv[FW[f, 0], d]
-                        uv_b[n, d] = uv[FW[f, 1], d]
-                        uv_c[n, d] = uv[FW[f, 2], d]
-                    kappa = face_kappa[f]
-                    n += 1
-                c = cnext[c]
-        res, ok = r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n, kappa,
-                                         ALPHA_DEG)
-        if n > 0 and ok:
-            new_uv[ti, 0] = res[0]
-            new_uv[ti, 1] = res[1]
-        else:  # interpolate along the edge when t is a merged pair, else keep
-            new_uv[ti, 0] = uv[t, 0]
-            new_uv[ti, 1] = uv[t, 1]
-            for i in range(npairs):
-                if wmap_to[i] == t:
-                    a = wmap_from[i]
-                    new_uv[ti, 0] = (1.0 - t_edge) * uv[a, 0] + t_edge * uv[t, 0]
-                    new_uv[ti, 1] = (1.0 - t_edge) * uv[a, 1] + t_edge * uv[t, 1]
-    return nt
-
-
-@njit(cache=True)
 def barycentric_uv(q, p1, p2, p3, t1, t2, t3, out):
     """González et al. 2008, §3 "Texture coordinates": the texture coordinates that the
     triangle (p1, p2, p3) with corner UVs (t1, t2, t3) gives the point ``q``.
@@ -296,20 +227,3 @@ def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, 
     if stranded > 0:
         kinds[KIND_STRANDED] += 1
         kinds[KIND_STRANDED_WEDGES] += stranded
-
-
-def _face_kappa(P, F, FW, uv) -> np.ndarray:
-    """(m,) the texture scale κ of each face's texture patch (Lindstrom & Turk 2000
-    §4.1.1); a patch is a set of faces connected through shared wedges."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    m = len(F)
-    n_w = int(FW.max()) + 1
-    rows = np.repeat(np.arange(m), 3)
-    graph = coo_matrix((np.ones(3 * m), (rows, m + FW.reshape(-1))), shape=(m + n_w, m + n_w))
-    _, labels = connected_components(graph, directed=False)
-    patch_of_face = np.unique(labels[:m], return_inverse=True)[1].reshape(-1)
-    n_patches = int(patch_of_face.max()) + 1
-    kappa = texture_kappa(P, F, uv[FW], patch_of_face, n_patches)
-    return kappa[patch_of_face]

@@ -42,6 +42,8 @@ import scipy.ndimage as ndi
 from numba import njit
 
 from bench.core.mesh import Mesh, face_areas
+from methods.engine.topology import _edge_faces, _faces_area
+from methods.engine.wedges import corner_wedges
 from metrics.shading import luminance
 
 __all__ = [
@@ -614,3 +616,21 @@ def _check_uv_array(uv, name: str) -> np.ndarray:
     if not np.isfinite(uv).all():
         raise ValueError(f"{name} has NaN or infinite values; drop those segments first")
     return uv
+
+
+@njit(cache=True)
+def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, per_area,
+                   no_record):
+    """González et al. 2007, equations 1-2: (area of the edge's faces) × ``per_area``
+    when the edge's UV segment, in any of its faces' charts, crosses a texture border;
+    0 otherwise. ``per_area`` is 1 / the original's total area (equation 2's ratio) or
+    that ratio in the base cost's units (``Terms.canny_per_area``)."""
+    k = _edge_faces(a, b, F, vhead, cnext, falive, efaces)
+    h, w = borders.shape
+    for i in range(min(k, efaces.shape[0])):
+        wa, wb = corner_wedges(F, FW, efaces[i], a, b)
+        _, hit = _walk(uv[wa, 0] * w, uv[wa, 1] * h, uv[wb, 0] * w, uv[wb, 1] * h,
+                       borders, no_record)
+        if hit:
+            return _faces_area(k, efaces, P, F) * per_area
+    return 0.0

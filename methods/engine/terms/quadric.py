@@ -9,6 +9,8 @@ import numpy as np
 from numba import njit
 
 from bench.core.mesh import Mesh
+from methods.engine.state import QUADRIC_SIZE
+from methods.engine.wedges import _wedge_pairs, _wedge_targets
 
 
 @njit(cache=True, _nrt=False)
@@ -294,3 +296,23 @@ def wedge_quadrics(P: np.ndarray, F: np.ndarray, FW: np.ndarray, uv: np.ndarray,
     for corner in range(3):
         np.add.at(WQ, FW[:, corner], per_face)
     return WQ
+
+
+@njit(cache=True, inline="always")
+def _edge_quadric(a, b, mesh, scratch):
+    """``scratch.qsum`` = the quadric of edge (a, b): the endpoints' vertex quadrics,
+    plus with wedge quadrics (Garland-Heckbert 1998, over (x, y, z, u, v)) each merged
+    wedge's group quadric reduced at its UV."""
+    Q, qsum, WQ = mesh.Q, scratch.qsum, mesh.WQ
+    for i in range(QUADRIC_SIZE):
+        qsum[i] = Q[a, i] + Q[b, i]
+    if WQ.shape[0] > 1:
+        gfrom, gto, targets, g = (scratch.wq.gfrom, scratch.wq.gto, scratch.wq.targets,
+                                  scratch.wq.g)
+        npairs = _wedge_pairs(a, b, mesh.F, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive,
+                              scratch.efaces, gfrom, gto)
+        nt = _wedge_targets(a, b, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive, gfrom, gto,
+                            npairs, targets)
+        for i in range(nt):
+            _group_quadric(targets[i], WQ, gfrom, gto, npairs, g)
+            _add_reduced(g, mesh.uv[targets[i]], qsum)

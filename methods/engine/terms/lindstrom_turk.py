@@ -100,8 +100,9 @@ and A_e = ½ (s - p) × (t - p): the normalisation of CGAL's ``LindstromTurk_cos
 cost /36, boundary cost /4, boundary term × L², shape term × L⁴). Defaults w_V = w_B = 0.5,
 w_S = 0: CGAL's defaults (``LindstromTurk_params``), kept so that results can be
 compared with CGAL's simplifier. Every term then scales as length⁶: scaling the mesh
-by λ scales the cost by λ⁶ (volume cost alone ~ length⁶, boundary cost alone ~ length⁴, shape cost alone ~ length²; the L²
-and L⁴ factors of the collapsed edge make them commensurate). Costs of different models
+by λ scales the cost by λ⁶ (volume cost alone ~ length⁶, boundary cost alone ~ length⁴,
+shape cost alone ~ length²; the L² and L⁴ factors of the collapsed edge make them
+commensurate). Costs of different models
 are therefore only comparable after normalising the models' size.
 
 Texture coordinates in R⁵ (Lindstrom & Turk 2000, §4.1.1, Eqs. 4–7)
