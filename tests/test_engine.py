@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from bench.core.mesh import Mesh
+from methods.corners import corner_lists
 from methods.engine.policy import Policy
 from methods.engine.simplify import simplify_mesh
 from methods.engine.terms.quadric import (
@@ -20,7 +21,6 @@ from methods.engine.terms.quadric import (
     initial_quadrics,
     quadric_error,
 )
-from methods.engine.topology import _corner_lists
 
 
 def grid(n: int, z=lambda x, y: 0.0 * x):
@@ -290,7 +290,7 @@ def test_best_of_ends_takes_the_lowest_error_and_the_first_of_equal_ones():
 
 def test_corner_lists_link_every_corner_once():
     F = np.array([[0, 1, 2], [2, 1, 3], [3, 1, 0]])
-    vhead, cnext = _corner_lists(F, 4)
+    vhead, cnext = corner_lists(F, 4)
     for v in range(4):
         corners = []
         c = vhead[v]

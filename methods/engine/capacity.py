@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
 from methods.engine.state import LOG_CHANGED_HEADROOM, PROFILE_CAP, WEDGE_TARGETS_CAP, renders
 from methods.engine.wedges import _mapped, _wedge_pairs
 from methods.imaging.region import AFFECTED_CAP, MAX_RING
@@ -35,11 +36,9 @@ from methods.imaging.rows import NORMAL_FACES_CAP
 def live_corners(x, vhead, cnext, falive):
     """How many live faces hold vertex ``x``."""
     n = 0
-    c = vhead[x]
-    while c != -1:
+    for c in corners(x, vhead, cnext):
         if falive[c // 3]:
             n += 1
-        c = cnext[c]
     return n
 
 
@@ -55,13 +54,11 @@ def merged_wedges(a, b, mesh, scratch):
     wedges = np.empty(n, np.int64)
     k = 0
     for side in range(2):
-        c = vhead[a if side == 0 else b]
-        while c != -1:
+        for c in corners(a if side == 0 else b, vhead, cnext):
             f = c // 3
             if falive[f]:
                 wedges[k] = _mapped(FW[f, c % 3], gfrom, gto, npairs)
                 k += 1
-            c = cnext[c]
     return np.unique(wedges[:k]).shape[0]
 
 
@@ -78,8 +75,7 @@ def _ring_over_capacity(a, b, mesh, scratch):
     ring = 0
     faces = 0
     for side in range(2):
-        c = vhead[a if side == 0 else b]
-        while c != -1:
+        for c in corners(a if side == 0 else b, vhead, cnext):
             f = c // 3
             if falive[f]:
                 for j in range(3):
@@ -91,7 +87,6 @@ def _ring_over_capacity(a, b, mesh, scratch):
                         faces += n
                         if ring > MAX_RING or n > NORMAL_FACES_CAP or faces > AFFECTED_CAP:
                             return True
-            c = cnext[c]
     return False
 
 

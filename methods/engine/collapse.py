@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
 from methods.engine.state import QUADRIC_SIZE, WEDGE_QUADRIC_SIZE, WEDGE_TARGETS_CAP
 from methods.engine.terms.quadric import _uv_minimiser
 from methods.engine.terms.r5 import _r5_update
@@ -45,9 +46,8 @@ def _collapse(u, v, p, mesh, rules, terms, scratch, log_changed, n_changed, kind
     for i in range(k):  # the apexes of removed faces hold dead corners now
         _compact(_third(F, efaces[i], u, v), vhead, cnext, falive)
     # Rename u to v in its surviving faces; remap paired wedges; move u's other wedges.
-    c = vhead[u]
     last = -1
-    while c != -1:
+    for c in corners(u, vhead, cnext):
         f = c // 3
         if falive[f]:
             j = c % 3
@@ -62,7 +62,6 @@ def _collapse(u, v, p, mesh, rules, terms, scratch, log_changed, n_changed, kind
             log_changed[n_changed] = f
             n_changed += 1
         last = c
-        c = cnext[c]
     if last != -1:  # append u's corner list to v's
         cnext[last] = vhead[v]
         vhead[v] = vhead[u]

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
 from methods.engine.capacity import over_capacity
 from methods.engine.policy import (
     BOUNDARY_RULE,
@@ -187,8 +188,7 @@ def _near_ring(a, b, l2, mesh, p, factor):
     lo0 = lo1 = lo2 = np.inf
     hi0 = hi1 = hi2 = -np.inf
     for side in range(2):
-        c = mesh.vhead[a if side == 0 else b]
-        while c != -1:
+        for c in corners(a if side == 0 else b, mesh.vhead, mesh.cnext):
             f = c // 3
             if mesh.falive[f]:
                 for j in range(3):
@@ -196,7 +196,6 @@ def _near_ring(a, b, l2, mesh, p, factor):
                     lo0, hi0 = min(lo0, P[x, 0]), max(hi0, P[x, 0])
                     lo1, hi1 = min(lo1, P[x, 1]), max(hi1, P[x, 1])
                     lo2, hi2 = min(lo2, P[x, 2]), max(hi2, P[x, 2])
-            c = mesh.cnext[c]
     return (lo0 - margin <= p[0] <= hi0 + margin and lo1 - margin <= p[1] <= hi1 + margin
             and lo2 - margin <= p[2] <= hi2 + margin)
 

@@ -13,6 +13,7 @@ import numpy as np
 from bench.core.mesh import Mesh
 from bench.core.progress import watching_faces
 from bench.io.atlas import face_materials, wedge_tiles
+from methods.corners import corner_lists
 from methods.engine.initial import edge_areas, first_costs
 from methods.engine.loop import _run
 from methods.engine.parts import face_groups
@@ -38,7 +39,7 @@ from methods.engine.state import (
 )
 from methods.engine.terms.quadric import _boundary_corners, initial_quadrics, wedge_quadrics
 from methods.engine.terms.r5 import _face_kappa
-from methods.engine.topology import _corner_lists, vboundary_of
+from methods.engine.topology import vboundary_of
 from methods.engine.views import views_shared
 from methods.imaging.state import dummy_state, keeps_luminance
 
@@ -261,7 +262,7 @@ def _prepare(mesh: Mesh, policy: Policy, image) -> _Prepared:
         P0, P, vboundary, F, FW, wedge_vertex, boundary_corners, vperm, fperm = _renumber(
             P0, P, vboundary, F, FW, wedge_vertex, boundary_corners)
     falive = np.ones(len(F), bool)
-    vhead, cnext = _corner_lists(F, nv)
+    vhead, cnext = corner_lists(F, nv)
     valive = np.zeros(nv, bool)
     valive[np.unique(F)] = True
     uv = mesh.uv.copy() if mesh.uv is not None else np.zeros((1, 2))

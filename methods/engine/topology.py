@@ -9,6 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
 from methods.engine.policy import (
     REJECT_BOUNDARY_LOCK,
     REJECT_BOUNDARY_PINCH,
@@ -44,8 +45,7 @@ def _neighbors(v, F, vhead, cnext, falive, mark, tick, out):
     t = tick[0]
     mark[v] = t
     n = 0
-    c = vhead[v]
-    while c != -1:
+    for c in corners(v, vhead, cnext):
         f = c // 3
         if falive[f]:
             for k in range(3):
@@ -54,7 +54,6 @@ def _neighbors(v, F, vhead, cnext, falive, mark, tick, out):
                     mark[w] = t
                     out[n] = w
                     n += 1
-        c = cnext[c]
     return n
 
 
@@ -62,14 +61,12 @@ def _neighbors(v, F, vhead, cnext, falive, mark, tick, out):
 def _edge_faces(u, v, F, vhead, cnext, falive, out):
     """Alive faces containing both u and v, into ``out``; returns the count."""
     n = 0
-    c = vhead[u]
-    while c != -1:
+    for c in corners(u, vhead, cnext):
         f = c // 3
         if falive[f] and (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v):
             if n < out.shape[0]:
                 out[n] = f
             n += 1
-        c = cnext[c]
     return n
 
 
@@ -157,8 +154,7 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
     for side in range(2):
         x = u if side == 0 else v
         y = v if side == 0 else u
-        c = vhead[x]
-        while c != -1:
+        for c in corners(x, vhead, cnext):
             f = c // 3
             if falive[f] and not (F[f, 0] == y or F[f, 1] == y or F[f, 2] == y):
                 a = -1
@@ -170,14 +166,12 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
                         else:
                             b = F[f, j]
                 if side == 0:
-                    c2 = vhead[v]
-                    while c2 != -1:
+                    for c2 in corners(v, vhead, cnext):
                         g = c2 // 3
                         if falive[g] and not (F[g, 0] == u or F[g, 1] == u or F[g, 2] == u):
                             if ((F[g, 0] == a or F[g, 1] == a or F[g, 2] == a)
                                     and (F[g, 0] == b or F[g, 1] == b or F[g, 2] == b)):
                                 return REJECT_DUPLICATE_FACE
-                        c2 = cnext[c2]
                 # fold-over: the face with x moved to p
                 i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
                 b0, b1, b2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], P[i1, 0], P[i1, 1],
@@ -198,7 +192,6 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
                 if lb > 0.0:
                     if (b0 * a0 + b1 * a1 + b2 * a2) / (la * lb) < cos_limit:
                         return REJECT_FOLD_OVER
-            c = cnext[c]
     return VALID
 
 
@@ -219,8 +212,7 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, t
     for side in range(2):
         x = a if side == 0 else b
         y = b if side == 0 else a
-        c = vhead[x]
-        while c != -1:
+        for c in corners(x, vhead, cnext):
             f = c // 3
             if falive[f]:
                 has_y = F[f, 0] == y or F[f, 1] == y or F[f, 2] == y
@@ -253,28 +245,12 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, t
                             for d in range(3):
                                 link[n_link, d] = P[w, d]
                             n_link += 1
-            c = cnext[c]
     return n_tris, n_bnd, n_link
 
 
 @njit(cache=True, _nrt=False)
 def _has_vertex(F, f, x):
     return F[f, 0] == x or F[f, 1] == x or F[f, 2] == x
-
-
-def _corner_lists(F: np.ndarray, nv: int):
-    """vhead (nv,) and cnext (3m,) linking each vertex's corners, in corner order."""
-    corners = F.reshape(-1).astype(np.int64)
-    order = np.argsort(corners, kind="stable")
-    vhead = np.full(nv, -1, np.int64)
-    cnext = np.full(len(corners), -1, np.int64)
-    sorted_v = corners[order]
-    same = sorted_v[1:] == sorted_v[:-1]
-    cnext[order[:-1][same]] = order[1:][same]
-    first = np.ones(len(order), bool)
-    first[1:] = ~same
-    vhead[sorted_v[first]] = order[first]
-    return vhead, cnext
 
 
 def vboundary_of(w, nv: int) -> np.ndarray:

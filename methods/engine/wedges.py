@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
 from methods.engine.state import KIND_STRANDED, KIND_STRANDED_WEDGES, KIND_TWIN
 from methods.engine.topology import _edge_faces, _has_vertex
 
@@ -16,15 +17,13 @@ from methods.engine.topology import _edge_faces, _has_vertex
 def _is_seam_vertex(v, FW, vhead, cnext, falive):
     """True when the faces around v use more than one wedge for it."""
     first = -1
-    c = vhead[v]
-    while c != -1:
+    for c in corners(v, vhead, cnext):
         if falive[c // 3]:
             w = FW[c // 3, c % 3]
             if first == -1:
                 first = w
             elif w != first:
                 return True
-        c = cnext[c]
     return False
 
 
@@ -85,8 +84,7 @@ def _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, t
     nt = 0
     for side in range(2):
         x = u if side == 0 else v
-        c = vhead[x]
-        while c != -1:
+        for c in corners(x, vhead, cnext):
             f = c // 3
             if falive[f]:
                 w = _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs)
@@ -100,7 +98,6 @@ def _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, t
                                          "WEDGE_TARGETS_CAP (methods.engine.state)")
                     targets[nt] = w
                     nt += 1
-            c = cnext[c]
     return nt
 
 
@@ -175,8 +172,7 @@ def _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex, wm
         best = -np.inf
         for side in range(2):
             x = u if side == 0 else v
-            c = vhead[x]
-            while c != -1:
+            for c in corners(x, vhead, cnext):
                 f = c // 3
                 if falive[f] and _mapped(FW[f, c % 3], wmap_from, wmap_to, npairs) == t:
                     depth = barycentric_uv(p, P[F[f, 0]], P[F[f, 1]], P[F[f, 2]],
@@ -185,7 +181,6 @@ def _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex, wm
                         best = depth
                         new_uv[ti, 0], new_uv[ti, 1] = res[0], res[1]
                         moved_t[ti] = 1
-                c = cnext[c]
     return nt
 
 
@@ -209,8 +204,7 @@ def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, 
         kinds[KIND_TWIN] += 1
     stranded = 0
     first = np.full(16, -1, np.int64)
-    c = vhead[u]
-    while c != -1:
+    for c in corners(u, vhead, cnext):
         f = c // 3
         if falive[f] and not _has_vertex(F, f, v):
             w = FW[f, c % 3]
@@ -223,7 +217,6 @@ def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, 
                     if stranded < 16:
                         first[stranded] = w
                     stranded += 1
-        c = cnext[c]
     if stranded > 0:
         kinds[KIND_STRANDED] += 1
         kinds[KIND_STRANDED_WEDGES] += stranded

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
+
 
 @njit(cache=True)
 def _xlogx(a):
@@ -100,11 +102,9 @@ def fan_pixels(x, vhead, cnext, falive, ent):
         return 0
     counts = ent.counts
     total = 0
-    c = vhead[x]
-    while c != -1:
+    for c in corners(x, vhead, cnext):
         f = c // 3
         if falive[f]:
             for h in range(counts.shape[0]):
                 total += counts[h, f + 1]
-        c = cnext[c]
     return total

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
 from methods.imaging.counters import (
     STAT_COMMITS,
     STAT_FACE_ROWS,
@@ -115,10 +116,8 @@ def _add_face(f, falive, mark, tk, out, n):
 def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
     """Append to ``out[n:]`` the live faces of vertex ``y`` not marked ``tk`` (marking
     them); returns the new count."""
-    c = vhead[y]
-    while c != -1:
+    for c in corners(y, vhead, cnext):
         n = _add_face(c // 3, falive, mark, tk, out, n)
-        c = cnext[c]
     return n
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
 from methods.imaging.raster import T_L, T_N, T_P, T_UV, T_W, T_X, T_Y, T_Z
 
 #: Faces around one vertex summed into its normal (:func:`vertex_normal` raises beyond).
@@ -95,8 +96,7 @@ def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
         y = np.int64(x) if side == 0 else np.int64(u)
         if side == 1 and not (u >= 0 and x == v):
             break
-        c = vhead[y]
-        while c != -1:
+        for c in corners(y, vhead, cnext):
             f = c // 3
             if falive[f] and not removed_by(F, f, u, v):
                 if n == buf.shape[0]:
@@ -104,7 +104,6 @@ def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
                                      "(methods.imaging.rows)")
                 buf[n] = f
                 n += 1
-            c = cnext[c]
     _sort_small(buf, n)
     sx = sy = sz = 0.0
     for i in range(n):

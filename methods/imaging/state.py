@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from methods.corners import corners
 from methods.imaging.counters import STAT_NAMES
 from methods.imaging.entropy import entropy_init, view_entropy
 from methods.imaging.raster import ROW, Shading, scan_row, shade_region, shading_constants
@@ -196,10 +197,8 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
             if not valive[i]:
                 continue
             n_faces = 0  # a fan wider than the capacity gets a buffer of its own
-            c = vhead[i]
-            while c != -1:
+            for c in corners(i, vhead, cnext):
                 n_faces += 1
-                c = cnext[c]
             buf = np.empty(max(NORMAL_FACES_CAP, n_faces), np.int64)
             vertex_normal(i, -1, -1, P[i], P, F, vhead, cnext, falive, buf, vn[i])
             for h in range(n_views):

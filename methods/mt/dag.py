@@ -51,6 +51,7 @@ from numba import njit
 
 from bench.core import progress
 from bench.core.mesh import Mesh, compact
+from methods.corners import corners
 
 __all__ = ["Cut", "MultiTriangulation", "build_mt", "from_log"]
 
@@ -445,15 +446,13 @@ def _star(F, walk, u, v, star):
     ns = 0
     for side in range(2):
         x = u if side == 0 else v
-        corner = walk.vhead[x]
-        while corner != -1:
+        for corner in corners(x, walk.vhead, walk.cnext):
             f = corner // 3
             if walk.falive[f] and (side == 0 or (F[f, 0] != u and F[f, 1] != u
                                                  and F[f, 2] != u)):
                 star = _grow(star, ns)
                 star[ns] = f
                 ns += 1
-            corner = walk.cnext[corner]
     return star, ns
 
 
@@ -542,11 +541,9 @@ def _create(b, walk, FW, f, i):
 @njit(cache=True)
 def _splice(walk, u, v):
     """u's corners join v's list (in front of them)."""
-    corner = walk.vhead[u]
     last = -1
-    while corner != -1:
+    for corner in corners(u, walk.vhead, walk.cnext):
         last = corner
-        corner = walk.cnext[corner]
     if last != -1:
         walk.cnext[last] = walk.vhead[v]
         walk.vhead[v] = walk.vhead[u]

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from methods.corners import corners
 from methods.engine.terms.lindstrom_turk import ALPHA_DEG, r5_texture_coordinates, texture_kappa
 from methods.engine.wedges import _mapped, _wedge_targets
 
@@ -45,8 +46,7 @@ def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fr
         kappa = 1.0
         for side in range(2):
             x = u if side == 0 else v
-            c = vhead[x]
-            while c != -1:
+            for c in corners(x, vhead, cnext):
                 f = c // 3
                 on_edge = (F[f, 0] == u or F[f, 1] == u or F[f, 2] == u) and \
                           (F[f, 0] == v or F[f, 1] == v or F[f, 2] == v)
@@ -65,7 +65,6 @@ def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fr
                         uv_c[n, d] = uv[FW[f, 2], d]
                     kappa = face_kappa[f]
                     n += 1
-                c = cnext[c]
         res, ok = r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n, kappa,
                                          ALPHA_DEG)
         if n > 0 and ok:
