@@ -59,7 +59,7 @@ from methods.engine.topology import (
     _third,
 )
 from methods.imaging.counters import STAT_RUN_CYCLES, STAT_TILE_REBUILDS, cycles
-from methods.imaging.region import commit_geometry, commit_render
+from methods.imaging.region import Scene, commit_geometry, commit_render
 from methods.imaging.share import share_tiles
 from methods.imaging.tiles import TILE, build_tiles
 from metrics.shading import BACKGROUND
@@ -260,8 +260,10 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
             img.stats[STAT_TILE_REBUILDS] += 1
             share_tiles(iws.vjob, tiles)
             images = Images(img, tiles, iws)
-        commit_render(changed, P, mesh.F, mesh.FW, mesh.uv, mesh.falive, img, images.tiles,
-                      iws, float(BACKGROUND))
+        # a commit merges no wedges: any int64 arrays stand for the wedge map
+        commit_render(changed, Scene(P=P, F=mesh.F, FW=mesh.FW, uv=mesh.uv, falive=mesh.falive,
+                                     img=img, tiles=images.tiles, iws=iws, wfrom=iws.cand,
+                                     wto=iws.cand, background=float(BACKGROUND)))
     log.count[LOG_COLLAPSES] = n + 1
     log.start[n + 1] = log.count[LOG_CHANGED]
     log.pair_start[n + 1] = log.count[LOG_PAIRS]

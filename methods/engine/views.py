@@ -31,7 +31,7 @@ import numpy as np
 
 from methods.engine.initial import own_counters
 from methods.engine.state import renders
-from methods.imaging.region import serve_views
+from methods.imaging.region import Scene, serve_views
 from methods.imaging.share import (
     JOB_FAILED,
     JOB_HANDLE,
@@ -84,9 +84,11 @@ def views_shared(mesh, rules, scratch, images, threads: int | None = None):
         try:
             while True:
                 version = int(job[JOB_TILES])
-                if serve_views(row, version, mesh.P, mesh.F, mesh.FW, mesh.uv, mesh.falive,
-                               own_img, TILES[handle], own_iws, scratch.wmap_from,
-                               scratch.wmap_to, background) == QUIT:
+                scene = Scene(P=mesh.P, F=mesh.F, FW=mesh.FW, uv=mesh.uv, falive=mesh.falive,
+                              img=own_img, tiles=TILES[handle], iws=own_iws,
+                              wfrom=scratch.wmap_from, wto=scratch.wmap_to,
+                              background=background)
+                if serve_views(row, version, scene) == QUIT:
                     return
         except BaseException as error:  # noqa: BLE001 - the loop sees the flag, the exit raises it
             errors.append(error)

@@ -12,6 +12,8 @@ keeps to the same rule; one that must allocate is compiled as usual."""
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
@@ -75,6 +77,18 @@ AFFECTED_CAP = 8192
 #: WEDGE_TARGETS_CAP).
 NEW_UV_CAP = 64
 
+#: What a thread draws its views from: the mesh's arrays (``P``, ``F``, ``FW``, ``uv``,
+#: ``falive``), the image state ``img``, the tile index, the thread's own workspace
+#: ``iws``, the merged wedges' map of the collapse being costed (``wfrom``, ``wto``;
+#: any int64 arrays for a commit, which merges none) and the background's luminance.
+Scene = namedtuple("Scene", "P F FW uv falive img tiles iws wfrom wto background")
+
+#: One change to draw: ``u`` collapsed into ``v`` at ``p`` (``u = v = -1``: the mesh as
+#: it is, after a collapse was made), ``sp`` the screen position of ``p`` in the view
+#: being drawn, ``iws.aff[:na]`` the faces whose geometry changes and ``iws.aff[:ns]``
+#: those whose shading may (marked with ``atick``), ``npairs`` the wedge pairs merged.
+Change = namedtuple("Change", "u v p sp na ns atick npairs")
+
 
 @njit(cache=True, _nrt=False)
 def _grow(rect, box):
@@ -122,10 +136,10 @@ def _faces_around(y, vhead, cnext, falive, mark, tk, out, n):
 
 
 @njit(cache=True, _nrt=False)
-def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws, wfrom,
-                 wto, npairs, atick, commit, background):
-    """Re-render ``rect`` of view ``h`` as the mesh looks after collapsing ``u`` into
-    ``v`` at ``p`` (``u = -1``: as it is now, after a collapse already made).
+def _render_view(scene, h, rect, change, commit):
+    """Re-render ``rect`` of view ``h`` as the mesh looks after the ``change``
+    (:data:`Change`: collapsing ``u`` into ``v`` at ``p``; ``u = -1``: as it is now,
+    after a collapse already made).
 
     ``iws.aff[:na]`` are the faces whose geometry changes (with ``u >= 0`` those holding
     both ``u`` and ``v`` disappear); they and any removed faces carry
@@ -138,14 +152,15 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
     ``DZ``; otherwise returns the change of the squared error (equation 8) and, with the
     viewpoint entropy, leaves |dH| of the view in ``iws.vdh[h]``.
     """
+    img, iws = scene.img, scene.iws
     stats, ent = img.stats, img.ent
     start = cycles()
     # Holes: the pixels whose face changes; the others keep their face and depth.
-    nh, far = _open_holes(h, rect, img, iws, atick)
+    nh, far = _open_holes(h, rect, img, iws, change.atick)
     # The changed faces, over the whole rectangle.
-    n = _scan_changed(h, rect, na, u, v, sp, F, img, iws, far)
+    n = _scan_changed(scene, h, rect, change, far)
     if nh > 0:  # what the changed faces uncover: every other face over the holes
-        n = _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws)
+        n = _fill_holes(scene, h, rect, change, nh, n)
     mid = cycles()
     if ent.on:  # viewpoint entropy: the count changes inside the rectangle
         dh = _entropy_change(h, rect, iws.ids, img.IDS, ent, commit)
@@ -158,8 +173,7 @@ def _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles, iws
         stats[STAT_RASTER_CYCLES] += cycles() - start
         return 0.0
     # Shade the pixels whose face or shading changed.
-    cost, shaded, n = _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom,
-                                     wto, npairs, atick, commit, background)
+    cost, shaded, n = _shade_changes(scene, h, rect, change, n, commit)
     end = cycles()
     stats[STAT_PIXELS_SHADED] += shaded
     stats[STAT_FACE_ROWS] += n
@@ -210,14 +224,16 @@ def _open_holes(h, rect, img, iws, atick):
 
 
 @njit(cache=True, _nrt=False)
-def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
+def _scan_changed(scene, h, rect, change, far):
     """Scan the changed faces ``iws.aff[:na]`` (after the collapse, those of the edge
     gone) over ``rect``; they become table rows 0..n-1. Returns n. A face wholly behind
     the rectangle's farthest depth ``far`` is not scanned: it would win no pixel."""
+    F, img, iws = scene.F, scene.img, scene.iws
+    u, v, sp = change.u, change.v, change.sp
     cand, rowof, t, aff = iws.cand, iws.rowof, iws.t, iws.aff
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     n = 0
-    for i in range(na):
+    for i in range(change.na):
         f = aff[i]
         if removed_by(F, f, u, v):
             continue
@@ -231,7 +247,7 @@ def _scan_changed(h, rect, na, u, v, sp, F, img, iws, far):
 
 
 @njit(cache=True, _nrt=False)
-def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
+def _fill_holes(scene, h, rect, change, nh, n):
     """Scan every other face whose box meets the open holes' box in a tile holding an
     open hole (stamped in ``iws.hmark``; from the tile index) over that box, each row
     only from its first open hole to its last (``iws.spans``), as table rows n..;
@@ -242,6 +258,7 @@ def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
     collapse, and every face at a settled hole was behind the one shown there before,
     so no unchanged face can beat it. For the same reason a face wholly behind the
     farthest depth in an open hole is not scanned."""
+    F, img, iws, sp = scene.F, scene.img, scene.iws, change.sp
     mark, tick, cand, rowof, t, aff = iws.mark, iws.tick, iws.cand, iws.rowof, iws.t, iws.aff
     IDS, DZ, depth, ids, hmark = img.IDS, img.DZ, iws.depth, iws.ids, iws.hmark
     width = img.Y.shape[2]
@@ -270,13 +287,13 @@ def _fill_holes(h, rect, nh, na, n, sp, F, falive, img, tiles, iws):
         far = max(far, z)
     if oc0 > oc1:
         return n
-    for i in range(na):
+    for i in range(change.na):
         mark[aff[i]] = otick
     hole = iws.box
     hole[0], hole[1], hole[2], hole[3] = oc0, oc1, or0, or1
     g0 = cycles()
-    n2 = _gather(tiles, h, hole, img.fbox, falive, mark, otick, cand, n, TILE, nx, hmark,
-                 otick)
+    n2 = _gather(scene.tiles, h, hole, img.fbox, scene.falive, mark, otick, cand, n, TILE, nx,
+                 hmark, otick)
     img.stats[STAT_GATHER_CYCLES] += cycles() - g0
     hole_depth = depth[or0 - r0:, oc0 - c0:]  # views indexed from the open holes' corner
     hole_ids = ids[or0 - r0:, oc0 - c0:]
@@ -300,12 +317,13 @@ def _commit_ids(h, rect, img, iws):
 
 
 @njit(cache=True, _nrt=False)
-def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, npairs,
-                   atick, commit, background):
+def _shade_changes(scene, h, rect, change, n, commit):
     """Shade the rectangle's pixels whose face changed, or whose face's shading may have
     (``amark == atick``): into ``Y``, ``IDS``, ``DZ`` with ``commit``, else summing the
     change of the squared error. A kept face seen there gets a table row on first use.
     Returns (cost, pixels shaded, row count)."""
+    P, F, FW, uv, img, iws = scene.P, scene.F, scene.FW, scene.uv, scene.img, scene.iws
+    u, v, p, sp, atick = change.u, change.v, change.p, change.sp, change.atick
     Y0, Y, S, L, shading, texture, IDS, DZ, eyes = (img.Y0, img.Y, img.S, img.L,
                                                      img.shading, img.texture, img.IDS,
                                                      img.DZ, img.eyes)
@@ -325,7 +343,7 @@ def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, 
             if f == before[j] and (f < 0 or amark[f] != atick):
                 continue  # the same face, unchanged: the same luminance
             c = c0 + j
-            y = background
+            y = scene.background
             if f >= 0:
                 k = rowof[f]
                 if k >= n or cand[k] != f:  # kept face, only its shading changes: a row
@@ -336,8 +354,8 @@ def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, 
                     n += 1
                 if rowmark[k] != filled:
                     fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, iws.vslot,
-                                 iws.ov_light, iws.wslot, iws.new_uv, wfrom, wto, npairs,
-                                 shading)
+                                 iws.ov_light, iws.wslot, iws.new_uv, scene.wfrom, scene.wto,
+                                 change.npairs, shading)
                     rowmark[k] = filled
                 y = shade_pixel(t, k, c + 0.5, r + 0.5, eyes[h], shading, texture)
             shaded += 1
@@ -353,11 +371,12 @@ def _shade_changes(h, rect, n, u, v, sp, p, P, F, FW, uv, img, iws, wfrom, wto, 
 
 
 @njit(cache=True)
-def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfrom, wto,
-               npairs, targets, nt, target_uv, background, bound):
-    """Equation 8 for collapsing ``u`` into ``v`` at ``p``: the change of the summed
-    squared luminance error over every view's rectangle. ``targets[:nt]`` are the wedges
-    whose texture coordinates become ``target_uv[:nt]``. The sum of |dH| over the views
+def image_cost(scene, u, v, p, npairs, corner_lists, new_uv, bound):
+    """Equation 8 for collapsing ``u`` into ``v`` at ``p``, in the :data:`Scene` of the
+    evaluating thread (its wedge map holding ``npairs`` pairs): the change of the summed
+    squared luminance error over every view's rectangle. ``corner_lists`` are the mesh's
+    (vhead, cnext); ``new_uv`` is (targets, nt, target_uv): ``targets[:nt]`` are the
+    wedges whose texture coordinates become ``target_uv[:nt]``. The sum of |dH| over the views
     goes to ``img.ent.delta[0]``. The set-up is this thread's; the views are shared
     with the run's helpers, if any (:mod:`methods.imaging.share`), and taken in the
     order ``iws.vorder``.
@@ -366,6 +385,8 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     rendered and ``img.ent.delta[0]`` is inf (the caller knows the collapse loses
     whatever they give; the returned cost then covers the views done). ``np.inf``:
     every view is rendered."""
+    img, iws = scene.img, scene.iws
+    targets, nt, target_uv = new_uv
     img.stats[STAT_IMAGE_EVALUATIONS] += 1
     setup_start = cycles()
     if nt > iws.new_uv.shape[0]:
@@ -374,7 +395,8 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     for i in range(nt):
         iws.wslot[targets[i]] = i
         iws.new_uv[i, 0], iws.new_uv[i, 1] = target_uv[i, 0], target_uv[i, 1]
-    na, ns, nr = _affected(u, v, p, P, (F, vhead, cnext, falive), img, iws)
+    vhead, cnext = corner_lists
+    na, ns, nr = _affected(u, v, p, scene.P, (scene.F, vhead, cnext, scene.falive), img, iws)
     img.stats[STAT_SETUP_CYCLES] += cycles() - setup_start
     n_views = img.Y.shape[0]
     job, part = iws.vjob, iws.vpart
@@ -386,7 +408,7 @@ def image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, img, tiles, iws, wfr
     clear_partials(part, helpers)
     publish(job, KIND_COST, u, v, na, ns, iws.tick[0], npairs)
     g = hand_out(job) if helpers > 0 else 0
-    _take_views(0, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background)
+    _take_views(0, scene)
     if g > 0:
         wait(job, g)
     # the views' results, summed in view order whichever thread drew which
@@ -547,35 +569,37 @@ def _relight(nall, removed, n_removed, P, topology, valive, img, iws):
 
 
 @njit(cache=True)
-def commit_render(na, P, F, FW, uv, falive, img, tiles, iws, background):
+def commit_render(na, scene):
     """Re-render every view's rectangle noted by :func:`commit_geometry` into the
     images (``na``: its count of changed faces), the views shared with the run's
-    helpers, if any."""
+    helpers, if any. A commit merges no wedges (npairs 0): the scene's ``wfrom`` and
+    ``wto`` may be any int64 arrays."""
+    iws = scene.iws
     job = iws.vjob
     # commit_geometry marked the changed faces with the tick
     publish(job, KIND_COMMIT, -1, -1, na, na, iws.tick[0], 0)
     g = hand_out(job) if job[JOB_HELPERS] > 0 else 0
-    # a commit merges no wedges (npairs 0): any int64 arrays stand for wfrom and wto
-    _take_views(0, P, F, FW, uv, falive, img, tiles, iws, iws.cand, iws.cand, background)
+    _take_views(0, scene)
     if g > 0:
         wait(job, g)
 
 
 @njit(cache=True, _nrt=False)
-def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws, wfrom,
-               wto, npairs, background):
+def _cost_view(scene, h, change):
     """View ``h``'s part of :func:`image_cost`: its rectangle re-rendered as after the
     collapse; the change of the squared error goes to ``iws.vcost[h]``, |dH| to
     ``iws.vdh[h]`` (left at the 0 :func:`image_cost` put there for a view the collapse
     does not touch)."""
-    S, fbox, sp, t, box, aff = img.S, img.fbox, iws.sp, iws.t, iws.box, iws.aff
+    F, img, iws = scene.F, scene.img, scene.iws
+    u, v, sp = change.u, change.v, change.sp
+    S, fbox, t, box, aff = img.S, img.fbox, iws.t, iws.box, iws.aff
     height, width = img.Y.shape[1], img.Y.shape[2]
-    project(img.M, h, p, width, height, sp)
+    project(img.M, h, change.p, width, height, sp)
     rect = iws.rects[h]
     rect[0], rect[1], rect[2], rect[3] = 0, -1, 0, -1
-    for i in range(ns):
+    for i in range(change.ns):
         _grow(rect, fbox[h, aff[i]])
-    for i in range(na):
+    for i in range(change.na):
         f = aff[i]
         if not removed_by(F, f, u, v):
             fill_screen(t, 0, f, h, u, v, sp, S, F)
@@ -583,26 +607,27 @@ def _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
             _grow(rect, box)
     if rect[0] > rect[1] or rect[2] > rect[3]:
         return
-    if img.ent.on and _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
+    if img.ent.on and _unchanged(scene, h, rect, change):
         return
-    iws.vcost[h] = _render_view(h, rect, na, u, v, sp, p, P, F, FW, uv, falive, img, tiles,
-                                iws, wfrom, wto, npairs, atick, False, background)
+    iws.vcost[h] = _render_view(scene, h, rect, change, False)
 
 
 @njit(cache=True, _nrt=False)
-def _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
+def _unchanged(scene, h, rect, change):
     """Whether collapsing ``u`` into ``v`` leaves view ``h`` as it is: no pixel shows a
     face whose geometry or shading changes (``iws.aff[:ns]``; the entropy's per-face
     pixel counts say so at once) and no changed face, as after the collapse, wins a
     pixel of ``rect`` (probed on the view's own depths and faces, so nothing is
     copied)."""
+    F, img, iws = scene.F, scene.img, scene.iws
+    u, v, sp = change.u, change.v, change.sp
     counts, aff, t = img.ent.counts, iws.aff, iws.t
-    for i in range(ns):
+    for i in range(change.ns):
         if counts[h, aff[i] + 1] != 0:
             return False
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
     depth, ids = img.DZ[h, r0:, c0:], img.IDS[h, r0:, c0:]  # indexed from the corner
-    for i in range(na):
+    for i in range(change.na):
         f = aff[i]
         if removed_by(F, f, u, v):
             continue
@@ -613,14 +638,17 @@ def _unchanged(h, rect, na, ns, u, v, sp, F, img, iws):
 
 
 @njit(cache=True, _nrt=False)
-def _take_views(row, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, background):
+def _take_views(row, scene):
     """Render the published job's views, one at a time, until none is left (a cost's
     in the order ``iws.vorder``, until their |dH| passes ``iws.vbound``); returns how
     many this thread (``row``: 0 the evaluating one, 1, 2, ... the helpers) took."""
+    img, iws = scene.img, scene.iws
     job = iws.vjob
-    kind, u, v, na, ns = job[JOB_KIND], job[JOB_U], job[JOB_V], job[JOB_NA], job[JOB_NS]
-    atick, npairs, p = job[JOB_ATICK], job[JOB_NPAIRS], iws.vp
-    helpers, bound = job[JOB_HELPERS], iws.vbound[0]
+    kind, helpers, bound = job[JOB_KIND], job[JOB_HELPERS], iws.vbound[0]
+    # a commit draws the mesh as it is (u = v = -1, no pairs); its p is never read
+    change = Change(u=job[JOB_U], v=job[JOB_V], p=iws.vp if kind == KIND_COST else scene.P[0],
+                    sp=iws.sp, na=job[JOB_NA], ns=job[JOB_NS], atick=job[JOB_ATICK],
+                    npairs=job[JOB_NPAIRS])
     n_views = img.Y.shape[0]
     taken = 0
     while True:
@@ -630,8 +658,7 @@ def _take_views(row, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, backgrou
         taken += 1
         if kind == KIND_COST:
             h = iws.vorder[k]
-            _cost_view(h, u, v, p, na, ns, atick, P, F, FW, uv, falive, img, tiles, iws,
-                       wfrom, wto, npairs, background)
+            _cost_view(scene, h, change)
             if add_partial(iws.vpart, row, iws.vdh[h], helpers) > bound:
                 stop_handing(job, n_views)  # the other views cannot change the verdict
             continue
@@ -639,24 +666,21 @@ def _take_views(row, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto, backgrou
         rect = iws.rects[h]
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue
-        _render_view(h, rect, na, -1, -1, iws.sp, P[0], P, F, FW, uv, falive, img, tiles,
-                     iws, wfrom, wto, 0, atick, True, background)
+        _render_view(scene, h, rect, change, True)
 
 
 @njit(cache=True, nogil=True)
-def serve_views(row, tiles_version, P, F, FW, uv, falive, img, tiles, iws, wfrom, wto,
-                background):
+def serve_views(row, tiles_version, scene):
     """A helper's loop: take views of each job handed to it, until told to quit
     (returns :data:`~methods.imaging.share.QUIT`) or handed a job after the tile index
     changed from ``tiles_version`` (returns ``RETILE``, the job still to do)."""
-    job = iws.vjob
+    img, job = scene.img, scene.iws.vjob
     while True:
         g = next_job(job, row, tiles_version)
         if g < 0:
             return g
         start = cycles()
-        img.stats[STAT_HELPER_VIEWS] += _take_views(row, P, F, FW, uv, falive, img, tiles,
-                                                    iws, wfrom, wto, background)
+        img.stats[STAT_HELPER_VIEWS] += _take_views(row, scene)
         # its working cycles join the run's, so that the image counters' shares of them
         # stay shares of all the work done (as the first pass's do)
         img.stats[STAT_RUN_CYCLES] += cycles() - start

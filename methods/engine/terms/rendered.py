@@ -14,7 +14,7 @@ from numba import njit
 from methods.engine.terms.r5 import _r5_compute
 from methods.engine.wedges import _edge_parameter, _wedge_pairs
 from methods.imaging.entropy import fan_pixels
-from methods.imaging.region import image_cost, rank_views
+from methods.imaging.region import Scene, image_cost, rank_views
 from metrics.shading import BACKGROUND
 
 
@@ -100,6 +100,6 @@ def _image_term(u, v, p, mesh, rules, terms, scratch, images, bound):
                 for d in range(2):
                     new_uv[i, d] = (1.0 - t_edge) * uv[wfrom[i], d] + t_edge * uv[wto[i], d]
             nt = npairs
-    return image_cost(u, v, p, P, F, FW, uv, falive, vhead, cnext, images.img, images.tiles,
-                      images.iws, wfrom, wto, npairs, targets, nt, new_uv, float(BACKGROUND),
-                      bound)
+    scene = Scene(P=P, F=F, FW=FW, uv=uv, falive=falive, img=images.img, tiles=images.tiles,
+                  iws=images.iws, wfrom=wfrom, wto=wto, background=float(BACKGROUND))
+    return image_cost(scene, u, v, p, npairs, (vhead, cnext), (targets, nt, new_uv), bound)
