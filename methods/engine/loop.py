@@ -248,27 +248,33 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
         log.faces[n, i] = efaces[i]
     faces_removed(mesh, efaces, min(removed, efaces.shape[0]))
     if renders(rules.weights):
-        img, tiles, iws = images.img, images.tiles, images.iws
+        img, iws = images.img, images.iws
         # the faces that held u: with v in place, the only ones whose geometry changes
         held_u = log.changed[first_changed:n_changed]
-        ok, changed = commit_geometry(v, stays, held_u, efaces, removed, P, mesh.F, mesh.FW,
-                                      mesh.uv, mesh.falive, mesh.vhead, mesh.cnext,
-                                      mesh.valive, img, tiles, iws)
+        ok, changed = commit_geometry(_commit_scene(mesh, images), v, stays, held_u, efaces,
+                                      removed, (mesh.vhead, mesh.cnext), mesh.valive)
         if not ok:
             tiles = build_tiles(img.fbox, mesh.falive, TILE, -(-img.Y.shape[2] // TILE),
                                 -(-img.Y.shape[1] // TILE))
             img.stats[STAT_TILE_REBUILDS] += 1
             share_tiles(iws.vjob, tiles)
             images = Images(img, tiles, iws)
-        # a commit merges no wedges: any int64 arrays stand for the wedge map
-        commit_render(changed, Scene(P=P, F=mesh.F, FW=mesh.FW, uv=mesh.uv, falive=mesh.falive,
-                                     img=img, tiles=images.tiles, iws=iws, wfrom=iws.cand,
-                                     wto=iws.cand, background=float(BACKGROUND)))
+        commit_render(changed, _commit_scene(mesh, images))
     log.count[LOG_COLLAPSES] = n + 1
     log.start[n + 1] = log.count[LOG_CHANGED]
     log.pair_start[n + 1] = log.count[LOG_PAIRS]
     log.wedge_start[n + 1] = log.count[LOG_WEDGES]
     return removed, images
+
+
+@njit(cache=True, inline="always")
+def _commit_scene(mesh, images):
+    """The :data:`~methods.imaging.region.Scene` a commit draws in: a commit merges no
+    wedges, so any int64 arrays stand for the wedge map."""
+    iws = images.iws
+    return Scene(P=mesh.P, F=mesh.F, FW=mesh.FW, uv=mesh.uv, falive=mesh.falive,
+                 img=images.img, tiles=images.tiles, iws=iws, wfrom=iws.cand, wto=iws.cand,
+                 background=float(BACKGROUND))
 
 
 @njit(cache=True)

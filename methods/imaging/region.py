@@ -483,19 +483,22 @@ def rank_views(iws):
 
 
 @njit(cache=True)
-def commit_geometry(v, stays, held, removed, n_removed, P, F, FW, uv, falive, vhead, cnext,
-                    valive, img, tiles, iws):
-    """After collapsing into ``v`` (faces ``removed[:n_removed]`` deleted): update screen
-    positions, normals, lighting and face boxes, note each view's rectangle, and list
-    the changed faces in the tile index. Returns (whether no tile overflowed, how many
-    faces changed their geometry); after an overflow rebuild the index before
-    :func:`commit_render`.
+def commit_geometry(scene, v, stays, held, removed, n_removed, corner_lists, valive):
+    """After collapsing into ``v`` (faces ``removed[:n_removed]`` deleted), in the
+    evaluating thread's :data:`Scene` (``corner_lists``: the mesh's vhead, cnext;
+    ``valive``: its live vertices): update screen positions, normals, lighting and face
+    boxes, note each view's rectangle, and list the changed faces in the tile index.
+    Returns (whether no tile overflowed, how many faces changed their geometry); after
+    an overflow rebuild the index before :func:`commit_render`.
 
     With ``stays`` (v kept its position: a half-edge collapse) only the faces
     ``held`` (those that held the removed vertex) change their geometry; the other
     faces around ``v`` keep their pixels, and are re-shaded only where the luminance is
     kept (their texture coordinates or normals may change). Otherwise every face
     around ``v`` changes."""
+    P, F, falive, img, tiles, iws = (scene.P, scene.F, scene.falive, scene.img, scene.tiles,
+                                     scene.iws)
+    vhead, cnext = corner_lists
     S, fbox = img.S, img.fbox
     tick, t, rects, sp, aff = iws.tick, iws.t, iws.rects, iws.sp, iws.aff
     amark, gmark = iws.amark, iws.gmark
