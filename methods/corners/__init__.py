@@ -41,16 +41,15 @@ def corners(x, vhead, cnext):
         c = cnext[c]
 
 
-def corner_lists(F: np.ndarray, nv: int):
-    """vhead (nv,) and cnext (3m,) linking each vertex's corners, in corner order."""
-    flat = F.reshape(-1).astype(np.int64)
-    order = np.argsort(flat, kind="stable")
+@njit(cache=True)
+def corner_lists(F, nv):
+    """vhead (nv,) and cnext (3m,) int64 linking each vertex's corners, in corner order
+    (built from the last corner back, each put in front of its vertex's list)."""
+    m = F.shape[0]
     vhead = np.full(nv, -1, np.int64)
-    cnext = np.full(len(flat), -1, np.int64)
-    sorted_v = flat[order]
-    same = sorted_v[1:] == sorted_v[:-1]
-    cnext[order[:-1][same]] = order[1:][same]
-    first = np.ones(len(order), bool)
-    first[1:] = ~same
-    vhead[sorted_v[first]] = order[first]
+    cnext = np.full(3 * m, -1, np.int64)
+    for corner in range(3 * m - 1, -1, -1):
+        x = F[corner // 3, corner % 3]
+        cnext[corner] = vhead[x]
+        vhead[x] = corner
     return vhead, cnext

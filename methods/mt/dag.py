@@ -51,7 +51,7 @@ from numba import njit
 
 from bench.core import progress
 from bench.core.mesh import Mesh, compact
-from methods.corners import corners
+from methods.corners import corner_lists, corners
 
 __all__ = ["Cut", "MultiTriangulation", "build_mt", "from_log"]
 
@@ -403,13 +403,9 @@ def _replay(given, steps):
 def _start(given, steps):
     """The walk and the MT before the first collapse: the input's wedges and faces."""
     m, nw, c = given.F.shape[0], given.wedge_pos.shape[0], steps.removed.shape[0]
-    vhead = np.full(given.Pn.shape[0], -1, np.int64)
-    cnext = np.full(3 * m, -1, np.int64)
-    for corner in range(3 * m - 1, -1, -1):
-        x = given.F[corner // 3, corner % 3]
-        cnext[corner] = vhead[x]
-        vhead[x] = corner
-    walk = _Walk(vhead, cnext, np.ones(m, np.bool_), np.arange(m), np.arange(nw))
+    vhead, cnext = corner_lists(given.F, given.Pn.shape[0])
+    walk = _Walk(vhead=vhead, cnext=cnext, falive=np.ones(m, np.bool_), face_tri=np.arange(m),
+                 wedge_mv=np.arange(nw))
     # every wedge of a collapse adds at most one MT vertex
     n_vertices = nw + steps.wedges.shape[0]
     pos, uv = np.empty((n_vertices, 3)), np.empty((n_vertices, 2))
@@ -419,10 +415,12 @@ def _start(given, steps):
     welded[:nw] = given.wedge_vertex
     tris = np.empty((m + 8 * c + 16, 3), np.int64)
     tris[:m] = given.FW
-    b = _Built(pos, uv, welded, tris, np.full(m + 8 * c + 16, -1, np.int64),
-               np.full(m + 8 * c + 16, -1, np.int64), np.empty(8 * c + 16, np.int64),
-               np.empty(8 * c + 16, np.int64), np.zeros(c + 1, np.int64),
-               np.zeros(c + 1, np.int64), np.array([nw, m, 0, 0], np.int64))
+    b = _Built(pos=pos, uv=uv, welded=welded, tris=tris,
+               creator=np.full(m + 8 * c + 16, -1, np.int64),
+               destroyer=np.full(m + 8 * c + 16, -1, np.int64),
+               created=np.empty(8 * c + 16, np.int64), removed=np.empty(8 * c + 16, np.int64),
+               c_start=np.zeros(c + 1, np.int64), r_start=np.zeros(c + 1, np.int64),
+               n=np.array([nw, m, 0, 0], np.int64))
     return walk, b
 
 
@@ -510,9 +508,11 @@ def _rename(given, steps, walk, b, f, i, u, v):
 def _with_room(b):
     """``b`` with room for one more triangle and one more created and removed."""
     nt = b.n[_N_TRIANGLES]
-    return _Built(b.pos, b.uv, b.welded, _grow(b.tris, nt), _grow(b.creator, nt),
-                  _grow(b.destroyer, nt), _grow(b.created, b.n[_N_CREATED]),
-                  _grow(b.removed, b.n[_N_REMOVED]), b.c_start, b.r_start, b.n)
+    return _Built(pos=b.pos, uv=b.uv, welded=b.welded, tris=_grow(b.tris, nt),
+                  creator=_grow(b.creator, nt), destroyer=_grow(b.destroyer, nt),
+                  created=_grow(b.created, b.n[_N_CREATED]),
+                  removed=_grow(b.removed, b.n[_N_REMOVED]), c_start=b.c_start,
+                  r_start=b.r_start, n=b.n)
 
 
 @njit(cache=True)
