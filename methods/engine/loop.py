@@ -59,6 +59,7 @@ from methods.engine.topology import (
     _third,
 )
 from methods.imaging.counters import STAT_RUN_CYCLES, STAT_TILE_REBUILDS, cycles
+from methods.imaging.raster import NO_VERTEX, ZERO
 from methods.imaging.region import Scene, commit_geometry, commit_render
 from methods.imaging.share import share_tiles
 from methods.imaging.tiles import TILE, build_tiles
@@ -96,7 +97,7 @@ def _collect_candidates(heap, first, rules, queue, nv):
     edges, costs, keeps, places = first
     for e in range(edges.shape[0]):
         a, b = edges[e, 0], edges[e, 1]
-        _push(heap, costs[e], a, b, 0, 0, places[e], keeps[e])
+        _push(heap, costs[e], a, b, ZERO, ZERO, places[e], keeps[e])
         _remember(queue, rules, a, b, nv, costs[e])
     queue.tally[EVALUATIONS] += edges.shape[0]
 
@@ -194,12 +195,12 @@ def _log_collapse(log, u, v, fresh, p):
     n, count = log.count[LOG_COLLAPSES], log.count
     log = Log(cost=log.cost, removed=log.removed, kept=log.kept, pos=log.pos, faces=log.faces,
               start=log.start,
-              changed=_doubled(log.changed, count[LOG_CHANGED], LOG_CHANGED_HEADROOM),
+              changed=_doubled(log.changed, count[LOG_CHANGED], np.int64(LOG_CHANGED_HEADROOM)),
               pair_start=log.pair_start,
-              pairs=_doubled(log.pairs, count[LOG_PAIRS], WEDGE_PAIRS_CAP),
+              pairs=_doubled(log.pairs, count[LOG_PAIRS], np.int64(WEDGE_PAIRS_CAP)),
               wedge_start=log.wedge_start,
-              wedges=_doubled(log.wedges, count[LOG_WEDGES], WEDGE_TARGETS_CAP),
-              wedge_uv=_doubled(log.wedge_uv, count[LOG_WEDGES], WEDGE_TARGETS_CAP), count=count)
+              wedges=_doubled(log.wedges, count[LOG_WEDGES], np.int64(WEDGE_TARGETS_CAP)),
+              wedge_uv=_doubled(log.wedge_uv, count[LOG_WEDGES], np.int64(WEDGE_TARGETS_CAP)), count=count)
     log.cost[n] = fresh
     log.removed[n] = u
     log.kept[n] = v
@@ -254,7 +255,7 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
         ok, changed = commit_geometry(_commit_scene(mesh, images), v, stays, held_u, efaces,
                                       removed, (mesh.vhead, mesh.cnext), mesh.valive)
         if not ok:
-            tiles = build_tiles(img.fbox, mesh.falive, TILE, -(-img.Y.shape[2] // TILE),
+            tiles = build_tiles(img.fbox, mesh.falive, np.int64(TILE), -(-img.Y.shape[2] // TILE),
                                 -(-img.Y.shape[1] // TILE))
             img.stats[STAT_TILE_REBUILDS] += 1
             share_tiles(iws.vjob, tiles)
@@ -288,7 +289,7 @@ def _release_blocked(heap, blocked, w, cost, p, valive):
             blocked.live[j] = False
             o = blocked.end[j, 1 - side]
             if valive[o]:
-                _push(heap, cost, w, o, -1, -1, p, -1)
+                _push(heap, cost, w, o, NO_VERTEX, NO_VERTEX, p, NO_VERTEX)
         j = blocked.next[j, side]
     blocked.head[w] = -1
 
@@ -331,7 +332,7 @@ def _requeue(heap, u, v, removed, cost, fresh, mesh, rules, terms, scratch, imag
                 key = queue.last_key[kv]
             elif ku in queue.last_key:
                 key = queue.last_key[ku]
-            _push(heap, key, v, w, stamp[v], stamp[w], p, -1)
+            _push(heap, key, v, w, stamp[v], stamp[w], p, NO_VERTEX)
         queue.pushed_at[v] = stamp[v]
         return
     apexes = min(removed, 2) if rules.seam_rule and not neighbourhood_cost else 0

@@ -143,6 +143,12 @@ T_L = 24  # corner lighting, 3 x 4: (lit front, spec front, lit back, spec back)
 T_UV = 36  # corner texture coordinates, 3 x 2
 ROW = 42
 
+#: 0 and -1 (no vertex) as int64 values, not literals: numba compiles a kernel once more
+#: for every literal constant it is called with, and once more again while it types a
+#: counter that starts at a literal (``n = 0`` ... ``n += 1``); docs/maintainers.md.
+ZERO = np.int64(0)
+NO_VERTEX = np.int64(-1)
+
 
 #: The smallest positive double (a subnormal): ``e < TINY`` is ``e <= 0`` for any e.
 TINY = 5e-324
@@ -669,7 +675,7 @@ def _render_kernel(screen, positions, faces, face_normals, light, uv, texture, e
                    light[v] if gouraud and shade else light[0], uv, gouraud, textured, shade)
         depth = np.full((height, width), np.inf)
         for k in range(m):
-            scan_row(t, k, k, 0, width - 1, 0, height - 1, cull_front[v], depth, ids[v])
+            scan_row(t, k, k, ZERO, width - 1, ZERO, height - 1, cull_front[v], depth, ids[v])
         if shade:
             shade_region(t, ids[v], 0, width - 1, 0, height - 1, eyes[v], shading, texture,
                          background, lum[v])

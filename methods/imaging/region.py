@@ -32,7 +32,7 @@ from methods.imaging.counters import (
     cycles,
 )
 from methods.imaging.entropy import _entropy_change
-from methods.imaging.raster import behind, scan_row, shade_pixel, wins_any
+from methods.imaging.raster import NO_VERTEX, ZERO, behind, scan_row, shade_pixel, wins_any
 from methods.imaging.rows import (
     _light,
     _pos,
@@ -76,6 +76,11 @@ AFFECTED_CAP = 8192
 #: Wedges whose texture coordinates one collapse changes (the engine's
 #: WEDGE_TARGETS_CAP).
 NEW_UV_CAP = 64
+
+#: :func:`_render_view`'s ``commit``, typed (one compiled render for both, not one per
+#: literal: see :data:`methods.imaging.raster.ZERO`).
+DRAW_COST = np.bool_(False)
+DRAW_COMMIT = np.bool_(True)
 
 #: What a thread draws its views from: the mesh's arrays (``P``, ``F``, ``FW``, ``uv``,
 #: ``falive``), the image state ``img``, the tile index, the thread's own workspace
@@ -232,7 +237,7 @@ def _scan_changed(scene, h, rect, change, far):
     u, v, sp = change.u, change.v, change.sp
     cand, rowof, t, aff = iws.cand, iws.rowof, iws.t, iws.aff
     c0, c1, r0, r1 = rect[0], rect[1], rect[2], rect[3]
-    n = 0
+    n = np.int64(0)
     for i in range(change.na):
         f = aff[i]
         if removed_by(F, f, u, v):
@@ -270,7 +275,7 @@ def _fill_holes(scene, h, rect, change, nh, n):
     # farther (or of a higher id at the same depth) than the face they showed before.
     # Every unchanged face at a hole was behind the face shown there before, so at a
     # settled hole it loses to the new one too.
-    oc0, oc1, or0, or1 = width, -1, img.Y.shape[1], -1
+    oc0, oc1, or0, or1 = width, np.int64(-1), img.Y.shape[1], np.int64(-1)
     spans = iws.spans
     for r in range(r0, rect[3] + 1):
         spans[r, 0], spans[r, 1] = width, -1
@@ -300,7 +305,7 @@ def _fill_holes(scene, h, rect, change, nh, n):
     for k in range(n, n2):
         f = cand[k]
         rowof[f] = k
-        fill_screen(t, k, f, h, -1, -1, sp, img.S, F)
+        fill_screen(t, k, f, h, NO_VERTEX, NO_VERTEX, sp, img.S, F)
         if not behind(t, k, far):
             scan_row(t, k, f, oc0, oc1, or0, or1, img.cull[h], hole_depth, hole_ids, spans)
     return n2
@@ -406,9 +411,9 @@ def image_cost(scene, u, v, p, npairs, corner_lists, new_uv, bound):
     for h in range(n_views):  # a view left undone adds nothing
         iws.vcost[h] = iws.vdh[h] = 0.0
     clear_partials(part, helpers)
-    publish(job, KIND_COST, u, v, na, ns, iws.tick[0], npairs)
+    publish(job, np.int64(KIND_COST), u, v, na, ns, iws.tick[0], npairs)
     g = hand_out(job) if helpers > 0 else 0
-    _take_views(0, scene)
+    _take_views(ZERO, scene)
     if g > 0:
         wait(job, g)
     # the views' results, summed in view order whichever thread drew which
@@ -438,13 +443,13 @@ def _affected(u, v, p, P, topology, img, iws):
     mark, tick, vslot, aff = iws.mark, iws.tick, iws.vslot, iws.aff
     # the faces around the edge ([[e]]; those holding both ends disappear)
     tick[0] += 1
-    na = _faces_around(u, vhead, cnext, falive, mark, tick[0], aff, 0)
+    na = _faces_around(u, vhead, cnext, falive, mark, tick[0], aff, ZERO)
     if not (p[0] == P[v, 0] and p[1] == P[v, 1] and p[2] == P[v, 2]):
         na = _faces_around(v, vhead, cnext, falive, mark, tick[0], aff, na)
     # else a half-edge collapse: v stays, so its faces without u keep their geometry,
     # texture coordinates and pixels (gouraud adds them below, as v's normal changes)
     ns = na
-    nr = 0
+    nr = ZERO
     if img.shading.gouraud:  # vertices whose normal changes, and the faces they shade
         for i in range(na):  # (footnote 3)
             for j in range(3):
@@ -508,14 +513,14 @@ def commit_geometry(scene, v, stays, held, removed, n_removed, corner_lists, val
     # aff[:na]: the faces whose geometry changes; aff[:nall]: those around v whose
     # shading may change
     if stays:
-        na = 0
+        na = ZERO
         for i in range(held.shape[0]):
             na = _add_face(held[i], falive, iws.mark, tick[0], aff, na)
         nall = na
         if img.ent.shade or img.shading.gouraud:
             nall = _faces_around(v, vhead, cnext, falive, iws.mark, tick[0], aff, na)
     else:
-        na = nall = _faces_around(v, vhead, cnext, falive, iws.mark, tick[0], aff, 0)
+        na = nall = _faces_around(v, vhead, cnext, falive, iws.mark, tick[0], aff, ZERO)
     for h in range(n_views):
         rects[h, 0], rects[h, 1], rects[h, 2], rects[h, 3] = 0, -1, 0, -1
         project(img.M, h, P[v], width, height, S[h, v])
@@ -537,8 +542,8 @@ def commit_geometry(scene, v, stays, held, removed, n_removed, corner_lists, val
             _grow(rects[h], fbox[h, aff[i]])
         for i in range(na):
             f = aff[i]
-            fill_screen(t, 0, f, h, -1, -1, sp, S, F)
-            row_box(t, 0, width, height, fbox[h, f])
+            fill_screen(t, ZERO, f, h, NO_VERTEX, NO_VERTEX, sp, S, F)
+            row_box(t, ZERO, width, height, fbox[h, f])
             _grow(rects[h], fbox[h, f])
             if ok:
                 ok = _tiles_add(tiles, h, f, fbox[h, f], TILE, -(-width // TILE))
@@ -553,7 +558,7 @@ def _relight(nall, removed, n_removed, P, topology, valive, img, iws):
     F, vhead, cnext, falive)."""
     F, vhead, cnext, falive = topology
     ring, vslot, vn = iws.ring, iws.vslot, img.vn
-    nr = 0
+    nr = ZERO
     for i in range(nall + n_removed):
         f = iws.aff[i] if i < nall else removed[i - nall]
         for j in range(3):
@@ -564,7 +569,7 @@ def _relight(nall, removed, n_removed, P, topology, valive, img, iws):
     for i in range(nr):
         x = ring[i]
         vslot[x] = -1
-        vertex_normal(x, -1, -1, P[x], P, F, vhead, cnext, falive, iws.buf, vn[x])
+        vertex_normal(x, NO_VERTEX, NO_VERTEX, P[x], P, F, vhead, cnext, falive, iws.buf, vn[x])
         for h in range(img.Y.shape[0]):
             _light(P[x, 0], P[x, 1], P[x, 2], vn[x], img.eyes[h], img.shading, img.L[h, x], 0)
         ns = _faces_around(x, vhead, cnext, falive, iws.mark, iws.tick[0], iws.aff, ns)
@@ -580,9 +585,9 @@ def commit_render(na, scene):
     iws = scene.iws
     job = iws.vjob
     # commit_geometry marked the changed faces with the tick
-    publish(job, KIND_COMMIT, -1, -1, na, na, iws.tick[0], 0)
+    publish(job, np.int64(KIND_COMMIT), NO_VERTEX, NO_VERTEX, na, na, iws.tick[0], ZERO)
     g = hand_out(job) if job[JOB_HELPERS] > 0 else 0
-    _take_views(0, scene)
+    _take_views(ZERO, scene)
     if g > 0:
         wait(job, g)
 
@@ -605,14 +610,14 @@ def _cost_view(scene, h, change):
     for i in range(change.na):
         f = aff[i]
         if not removed_by(F, f, u, v):
-            fill_screen(t, 0, f, h, u, v, sp, S, F)
-            row_box(t, 0, width, height, box)
+            fill_screen(t, ZERO, f, h, u, v, sp, S, F)
+            row_box(t, ZERO, width, height, box)
             _grow(rect, box)
     if rect[0] > rect[1] or rect[2] > rect[3]:
         return
     if img.ent.on and _unchanged(scene, h, rect, change):
         return
-    iws.vcost[h] = _render_view(scene, h, rect, change, False)
+    iws.vcost[h] = _render_view(scene, h, rect, change, DRAW_COST)
 
 
 @njit(cache=True, _nrt=False)
@@ -634,8 +639,8 @@ def _unchanged(scene, h, rect, change):
         f = aff[i]
         if removed_by(F, f, u, v):
             continue
-        fill_screen(t, 0, f, h, u, v, sp, img.S, F)
-        if wins_any(t, 0, f, c0, c1, r0, r1, img.cull[h], depth, ids):
+        fill_screen(t, ZERO, f, h, u, v, sp, img.S, F)
+        if wins_any(t, ZERO, f, c0, c1, r0, r1, img.cull[h], depth, ids):
             return False
     return True
 
@@ -669,7 +674,7 @@ def _take_views(row, scene):
         rect = iws.rects[h]
         if rect[0] > rect[1] or rect[2] > rect[3]:
             continue
-        _render_view(scene, h, rect, change, True)
+        _render_view(scene, h, rect, change, DRAW_COMMIT)
 
 
 @njit(cache=True, nogil=True)

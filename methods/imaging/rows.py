@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit
 
 from methods.corners import corners
-from methods.imaging.raster import T_L, T_N, T_P, T_UV, T_W, T_X, T_Y, T_Z
+from methods.imaging.raster import T_L, T_N, T_P, T_UV, T_W, T_X, T_Y, T_Z, ZERO
 
 #: Faces around one vertex summed into its normal (:func:`vertex_normal` raises beyond).
 NORMAL_FACES_CAP = 1024
@@ -91,7 +91,7 @@ def _pos(x, u, v, p, P, d):
 def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
     """Unit area-weighted normal of vertex ``x`` after collapsing ``u`` into ``v`` at
     ``p`` (``u = -1``: the current mesh). Faces are summed in increasing index."""
-    n = 0
+    n = ZERO
     for side in range(2):
         y = np.int64(x) if side == 0 else np.int64(u)
         if side == 1 and not (u >= 0 and x == v):

@@ -12,7 +12,15 @@ from numba import njit, prange
 from methods.corners import corners
 from methods.imaging.counters import STAT_NAMES
 from methods.imaging.entropy import entropy_init, view_entropy
-from methods.imaging.raster import ROW, Shading, scan_row, shade_region, shading_constants
+from methods.imaging.raster import (
+    NO_VERTEX,
+    ROW,
+    ZERO,
+    Shading,
+    scan_row,
+    shade_region,
+    shading_constants,
+)
 from methods.imaging.region import _MAX_RING, AFFECTED_CAP, NEW_UV_CAP
 from methods.imaging.rows import (
     NORMAL_FACES_CAP,
@@ -200,7 +208,7 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
             for c in corners(i, vhead, cnext):
                 n_faces += 1
             buf = np.empty(max(NORMAL_FACES_CAP, n_faces), np.int64)
-            vertex_normal(i, -1, -1, P[i], P, F, vhead, cnext, falive, buf, vn[i])
+            vertex_normal(i, NO_VERTEX, NO_VERTEX, P[i], P, F, vhead, cnext, falive, buf, vn[i])
             for h in range(n_views):
                 _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], shading, L[h, i], 0)
     live = np.flatnonzero(falive)
@@ -213,12 +221,12 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
         local[:] = -1
         none_i = np.full(1, -1, np.int64)
         for k in range(live.shape[0]):
-            fill_screen(t, k, live[k], h, -1, -1, S[h, 0], S, F)
+            fill_screen(t, k, live[k], h, NO_VERTEX, NO_VERTEX, S[h, 0], S, F)
             if shade:
-                fill_shading(t, k, live[k], h, -1, -1, P[0], P, F, FW, uv, L, vslot,
-                             ov_light, wslot, new_uv, none_i, none_i, 0, shading)
+                fill_shading(t, k, live[k], h, NO_VERTEX, NO_VERTEX, P[0], P, F, FW, uv, L, vslot,
+                             ov_light, wslot, new_uv, none_i, none_i, ZERO, shading)
             row_box(t, k, width, height, fbox[h, live[k]])
-            scan_row(t, k, k, 0, width - 1, 0, height - 1, cull[h], depth, local)
+            scan_row(t, k, k, ZERO, width - 1, ZERO, height - 1, cull[h], depth, local)
         if shade:
             shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], shading, texture,
                          background, Y[h])
@@ -311,7 +319,7 @@ class ImageTerm:
         if self.entropy_weight != 0.0:
             entropy_init(img.IDS, img.ent)
         height, width = self.reference.shape[1:]
-        tiles = build_tiles(img.fbox, falive, TILE, -(-width // TILE), -(-height // TILE))
+        tiles = build_tiles(img.fbox, falive, np.int64(TILE), -(-width // TILE), -(-height // TILE))
         return img, tiles, iws
 
     def statistics(self, mesh, img, verify, P, F, FW, uv, falive, vhead, cnext, valive, lo, scale):

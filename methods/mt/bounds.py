@@ -625,7 +625,7 @@ def _silhouette_cones(tris, P, normals, areas, fp_start, fp, start, own):
         n_own = start[i + 1] - start[i]
         if vec.shape[0] < k + n_own:
             vec = np.empty((2 * (k + n_own) + 16, 3))
-        nvec = 0
+        nvec = np.int64(0)
         for q in range(fp_start[i], fp_start[i + 1]):
             o = fp[q]
             for e in range(3):
@@ -667,7 +667,7 @@ def _shading_cones(vnormals, fp_start, fp):
         k = fp_start[i + 1] - fp_start[i]
         if vec.shape[0] < 3 * k:
             vec = np.empty((6 * k + 16, 3))
-        nvec = 0
+        nvec = np.int64(0)
         for q in range(fp_start[i], fp_start[i + 1]):
             for e in range(3):
                 vec[nvec] = vnormals[fp[q], e]

@@ -441,7 +441,7 @@ def _moves(given, steps, i, v, pn):
 def _star(F, walk, u, v, star):
     """The live faces around u, then those around v without u, each once, in ``star``
     (grown when full); returns (star, their count)."""
-    ns = 0
+    ns = np.int64(0)
     for side in range(2):
         x = u if side == 0 else v
         for corner in corners(x, walk.vhead, walk.cnext):

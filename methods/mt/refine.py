@@ -26,8 +26,9 @@ from methods.mt.errors import node_errors
 
 #: Tie orders of the two heaps on equal keys: R (keyed by -error) pops the larger node
 #: index first, L (keyed by error) the smaller: both follow the (error, index) ranking.
-_R_TIES = -1
-_L_TIES = 1
+#: (int64 values, not literals: one compiled heap for both; docs/maintainers.md)
+_R_TIES = np.int64(-1)
+_L_TIES = np.int64(1)
 
 
 @njit(cache=True)
@@ -129,8 +130,8 @@ def _frontier(err, cut):
     rv = np.empty(c + 16, np.int64)
     lk = np.empty(c + 16)
     lv = np.empty(c + 16, np.int64)
-    nr = 0
-    nl = 0
+    nr = np.int64(0)
+    nl = np.int64(0)
     for i in range(c):
         if cut.applied[i] and cut.n_ap[i] == 0:
             rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i, _R_TIES)

@@ -505,7 +505,7 @@ def lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
     c = np.empty(3)
     p = np.zeros(3)
 
-    n = _add_volume_preservation(A, b, 0, tri_a, tri_b, tri_c, n_tris, o, cos2, sin2)
+    n = _add_volume_preservation(A, b, np.int64(0), tri_a, tri_b, tri_c, n_tris, o, cos2, sin2)
     if n < 3 and n_bnd > 0:
         n = _add_boundary_preservation(A, b, n, bnd_a, bnd_b, n_bnd, o, H, c, cos2, sin2)
     if n < 3:
@@ -736,7 +736,7 @@ def r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, kap
     _r5_preservation(Gsum, Hp, cp)
     A = np.zeros((2, 2))
     b = np.zeros(2)
-    n = _add_from_gradient2(A, b, 0, Hp, cp, ref * ref, cos2)
+    n = _add_from_gradient2(A, b, np.int64(0), Hp, cp, ref * ref, cos2)
     if n < 2:
         ho = math.sqrt(Ho[0, 0] ** 2 + 2.0 * Ho[0, 1] ** 2 + Ho[1, 1] ** 2)
         n = _add_from_gradient2(A, b, n, Ho, co, ho, cos2)

@@ -42,7 +42,7 @@ def _r5_compute(u, v, p, P, F, FW, falive, vhead, cnext, uv, face_kappa, wmap_fr
     nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)
     for ti in range(nt):
         t = targets[ti]
-        n = 0
+        n = np.int64(0)  # typed: see docs/maintainers.md, literal arguments
         kappa = 1.0
         for side in range(2):
             x = u if side == 0 else v
