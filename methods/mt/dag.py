@@ -599,6 +599,12 @@ def _set_applied(i, applied, parent_start, parents, child_start, children, n_ap,
         n_ap[children[j]] += 1
 
 
+#: :func:`_collect`'s ``want_applied``, typed (one compiled function for both, not one
+#: per literal: docs/maintainers.md).
+_WANT_APPLIED = np.bool_(True)
+_WANT_REFINED = np.bool_(False)
+
+
 @njit(cache=True)
 def _collect(i, want_applied, applied, start, links, stack, mark, tick):
     """Node i and every node reachable from it through ``links`` whose applied state
@@ -629,7 +635,7 @@ def _raise_closure(i, applied, n_faces, delta, parent_start, parents, child_star
                    n_ap, n_rc, stack, mark, tick):
     """Refine node i and its applied ancestors, parents first (they have higher
     indices: a parent removes triangles its child created later in the sequence)."""
-    n = _collect(i, True, applied, parent_start, parents, stack, mark, tick)
+    n = _collect(i, _WANT_APPLIED, applied, parent_start, parents, stack, mark, tick)
     order = np.sort(stack[:n])[::-1].copy()
     for x in order:
         _set_refined(x, applied, parent_start, parents, child_start, children, n_ap, n_rc)
@@ -641,7 +647,7 @@ def _raise_closure(i, applied, n_faces, delta, parent_start, parents, child_star
 def _lower_closure(i, applied, n_faces, delta, parent_start, parents, child_start, children,
                    n_ap, n_rc, stack, mark, tick):
     """Apply node i after its refined descendants, children first (lower indices)."""
-    n = _collect(i, False, applied, child_start, children, stack, mark, tick)
+    n = _collect(i, _WANT_REFINED, applied, child_start, children, stack, mark, tick)
     order = np.sort(stack[:n])
     for x in order:
         _set_applied(x, applied, parent_start, parents, child_start, children, n_ap, n_rc)
