@@ -1,5 +1,7 @@
 """Warming a method up before it is timed (bench.run.warmup)."""
 
+import pytest
+
 from bench.run import warmup
 from methods.quadric import Quadric
 
@@ -63,6 +65,33 @@ def test_two_families_build_side_by_side():
     kernels = {"a": ("engine",), "b": ("mt",), "d": ("mt",)}
     assert warmup.schedule(kernels) == [("a", set()), ("b", set()), ("d", {"b"})]
 
+
+
+def test_a_split_family_compiles_its_parts_first_and_its_builder_waits_for_them():
+    kernels = {"quadric": ("engine",), "image-driven": ("engine", "imaging"), "qslim": (),
+               "(evaluation)": ()}
+    parts = warmup.part_tasks({"engine", "imaging"})
+    assert parts == {"engine": ("(engine: costing)", "(engine: collapse)")}
+    order = warmup.schedule(kernels, parts)
+    assert order == [("(engine: costing)", set()), ("(engine: collapse)", set()),
+                     ("(evaluation)", set()), ("qslim", set()),
+                     ("quadric", {"(engine: costing)", "(engine: collapse)"}),
+                     ("image-driven", {"quadric"})]
+    seen = set()
+    for name, waits in order:
+        assert waits <= seen, (name, waits)
+        seen.add(name)
+
+
+def test_the_engine_compiles_in_parts_and_names_an_unknown_one():
+    from methods.engine.simplify import compile_part
+
+    plain, textured = warmup.tiny_meshes()
+    for part in ("costing", "collapse"):
+        compile_part(part, plain)
+        compile_part(part, textured)
+    with pytest.raises(ValueError, match="unknown part of the engine's kernels 'loop'"):
+        compile_part("loop", plain)
 
 def test_the_schedule_never_waits_on_a_later_task():
     kernels = {"m1": ("x", "y"), "m2": ("y",), "m3": ("x",), "m4": ("x", "y", "z"),

@@ -46,7 +46,11 @@ def run(args) -> int:
             bar.set_postfix_str(f"{name} {seconds:.1f} s")
             bar.update()
 
-        times = warm_up_all(names, jobs, done)
+        def plan(tasks):
+            bar.total = len(tasks)
+            bar.refresh()
+
+        times = warm_up_all(names, jobs, done, plan)
     slowest = sorted(times.items(), key=lambda kv: -kv[1])[:3]
     print(f"bench: warmed up {len(names)} methods and the evaluation in "
           f"{time.perf_counter() - start:.1f} s with {jobs} process{'es' if jobs > 1 else ''} "

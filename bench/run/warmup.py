@@ -150,17 +150,47 @@ def warm_up_evaluation_once() -> float:
     return time.perf_counter() - start
 
 
+#: Families whose cold compile is split into parts that processes compile at once, before
+#: the method that builds the family: the family's module and the parts its
+#: ``compile_part(part, mesh)`` takes. The engine's costing and its collapse are two
+#: halves of its compile that need nothing of each other; the loop, which needs both,
+#: is compiled after them (by the builder, reading both from the cache).
+SPLIT = {"engine": ("methods.engine.simplify", ("costing", "collapse"))}
+
+
+def part_tasks(families) -> dict[str, tuple[str, ...]]:
+    """The part tasks of each split family among ``families``: ``"(engine: costing)"``."""
+    return {f: tuple(f"({f}: {p})" for p in SPLIT[f][1]) for f in sorted(families) if f in SPLIT}
+
+
+def warm_up_part(name: str) -> float:
+    """Compile part task ``name`` (:data:`SPLIT`) on both tiny meshes; its seconds."""
+    import importlib
+
+    family, part = name.strip("()").split(": ")
+    compile_part = importlib.import_module(SPLIT[family][0]).compile_part
+    start = time.perf_counter()
+    for mesh in tiny_meshes():
+        with warnings.catch_warnings(), fewer_collections(), with_helpers():
+            warnings.simplefilter("ignore")
+            compile_part(part, mesh)
+    return time.perf_counter() - start
+
+
 def _warm_task(name: str) -> tuple[str, float]:
     """One task of :func:`warm_up_all` in a worker process: (name, seconds)."""
     if name == EVALUATION:
         return name, warm_up_evaluation()
+    if name.startswith("(") and ": " in name:
+        return name, warm_up_part(name)
     from bench.core.registry import registry
 
     cls = registry("method").load(name)
     return name, warm_up(cls, cls.Params())
 
 
-def schedule(kernels: dict[str, tuple[str, ...]]) -> list[tuple[str, set[str]]]:
+def schedule(kernels: dict[str, tuple[str, ...]],
+             parts: dict[str, tuple[str, ...]] | None = None) -> list[tuple[str, set[str]]]:
     """The order of :func:`warm_up_all`'s tasks, each with the tasks it waits for.
 
     ``kernels`` maps each task to the kernel families it needs. Each family is built by
@@ -169,30 +199,40 @@ def schedule(kernels: dict[str, tuple[str, ...]]) -> list[tuple[str, set[str]]]:
     needs. The engine's family is the long one (minutes cold) and every other family's
     kernels run with it, so its builder needs it alone and starts first: the other
     families' builders then compile theirs in both processes at once as soon as it is
-    cached, rather than one after another in the process that built the engine."""
+    cached, rather than one after another in the process that built the engine.
+    ``parts`` (:func:`part_tasks`) maps a family to tasks that compile parts of it: they
+    come first, and the family's builder waits for them."""
+    parts = parts or {}
     order = sorted(kernels, key=lambda n: (len(kernels[n]), n))
     builder: dict[str, str] = {}
     for name in order:
         for family in kernels[name]:
             builder.setdefault(family, name)
     builds = set(builder.values())
-    tasks = [(name, {builder[f] for f in kernels[name]} - {name}) for name in order]
+    tasks = [(name, ({builder[f] for f in kernels[name]} - {name})
+              | {p for f in kernels[name] if builder[f] == name for p in parts.get(f, ())})
+             for name in order]
+    first = [(p, set()) for f in sorted(parts) if f in builder for p in parts[f]]
     ready = [t for t in tasks if not t[1]]
-    return ([t for t in ready if t[0] in builds] + [t for t in ready if t[0] not in builds]
-            + [t for t in tasks if t[1]])
+    return (first + [t for t in ready if t[0] in builds]
+            + [t for t in ready if t[0] not in builds] + [t for t in tasks if t[1]])
 
 
-def warm_up_all(names: list[str], jobs: int = 1, on_done=lambda name, seconds: None
-                ) -> dict[str, float]:
+def warm_up_all(names: list[str], jobs: int = 1, on_done=lambda name, seconds: None,
+                on_plan=lambda tasks: None) -> dict[str, float]:
     """Warm up the methods ``names`` and the evaluation, in ``jobs`` processes at a
-    time (this process when 1), as :func:`schedule` orders them; ``on_done`` is told of
-    each task as it ends. Returns each task's seconds."""
+    time (this process when 1), as :func:`schedule` orders them, with the parts of the
+    split families (:data:`SPLIT`) first when ``jobs`` > 1 (one process gains nothing
+    from them); ``on_plan`` is told the tasks' names, ``on_done`` of each task as it
+    ends. Returns each task's seconds."""
     from bench.core.registry import registry
 
     methods = registry("method")
     kernels = {n: tuple(getattr(methods.load(n), "kernels", ())) for n in names}
     kernels[EVALUATION] = ()
-    tasks = schedule(kernels)
+    families = {f for needs in kernels.values() for f in needs}
+    tasks = schedule(kernels, part_tasks(families) if jobs > 1 else None)
+    on_plan([name for name, _ in tasks])
     times: dict[str, float] = {}
     if jobs <= 1:
         for name, _ in tasks:

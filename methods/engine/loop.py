@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import heapq
 
+import numba
 import numpy as np
 from numba import njit, types
 from numba.typed import Dict
@@ -200,7 +201,8 @@ def _log_collapse(log, u, v, fresh, p):
               pairs=_doubled(log.pairs, count[LOG_PAIRS], np.int64(WEDGE_PAIRS_CAP)),
               wedge_start=log.wedge_start,
               wedges=_doubled(log.wedges, count[LOG_WEDGES], np.int64(WEDGE_TARGETS_CAP)),
-              wedge_uv=_doubled(log.wedge_uv, count[LOG_WEDGES], np.int64(WEDGE_TARGETS_CAP)), count=count)
+              wedge_uv=_doubled(log.wedge_uv, count[LOG_WEDGES], np.int64(WEDGE_TARGETS_CAP)),
+              count=count)
     log.cost[n] = fresh
     log.removed[n] = u
     log.kept[n] = v
@@ -255,8 +257,8 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
         ok, changed = commit_geometry(_commit_scene(mesh, images), v, stays, held_u, efaces,
                                       removed, (mesh.vhead, mesh.cnext), mesh.valive)
         if not ok:
-            tiles = build_tiles(img.fbox, mesh.falive, np.int64(TILE), -(-img.Y.shape[2] // TILE),
-                                -(-img.Y.shape[1] // TILE))
+            tiles = build_tiles(img.fbox, mesh.falive, np.int64(TILE),
+                                -(-img.Y.shape[2] // TILE), -(-img.Y.shape[1] // TILE))
             img.stats[STAT_TILE_REBUILDS] += 1
             share_tiles(iws.vjob, tiles)
             images = Images(img, tiles, iws)
@@ -461,3 +463,16 @@ def _run(mesh, rules, terms, scratch, images, kinds, first):
     images.img.stats[STAT_RUN_CYCLES] += cycles() - run_start
     tally = owned_queue.tally
     return (stopped, tally[EVALUATIONS], tally[MISMATCHES], rejects, log)
+
+
+def compile_collapse(mesh, rules, terms, scratch, images, kinds) -> None:
+    """Compile (or read from numba's cache) the kernels with which :func:`_run` checks,
+    logs and takes a collapse, for the types of these arguments and without running
+    them, so that another process can compile the costing meanwhile
+    (:func:`methods.engine.simplify.compile_part`)."""
+    log = _new_log(rules.max_collapses, mesh.F.shape[0])
+    u = np.int64(0)
+    for kernel, args in ((_take, (u, u, mesh, rules, terms, scratch, images, log, kinds)),
+                         (_check_candidate, (u, u, 0.0, mesh, rules, scratch)),
+                         (_log_collapse, (log, u, u, 0.0, scratch.p))):
+        kernel.compile(tuple(numba.typeof(a) for a in args))

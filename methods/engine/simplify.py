@@ -15,7 +15,7 @@ from bench.core.progress import watching_faces
 from bench.io.atlas import face_materials, wedge_tiles
 from methods.corners import corner_lists
 from methods.engine.initial import edge_areas, first_costs
-from methods.engine.loop import _run
+from methods.engine.loop import _run, compile_collapse
 from methods.engine.parts import face_groups
 from methods.engine.policy import PLACEMENTS, REJECTIONS, EngineResult, Policy
 from methods.engine.scale import scaled, workable_exponent
@@ -93,6 +93,21 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
         return _simplify_scaled(mesh, exponent, target_faces, policy, verify, borders, image,
                                 max_collapses)
     start = time.perf_counter()
+    s = _setup(mesh, target_faces, policy, verify, borders, image, max_collapses)
+    run = _phases(s.arrays, s.rules, s.terms, s.scratch, s.images, s.prep.kinds,
+                  policy.stall_rotations)
+    return _result(mesh, target_faces, policy, image, s.prep, s.arrays, s.rules, s.images,
+                   run, s.canny_stats, start)
+
+
+#: What the loop starts from (:func:`_setup`): the prepared mesh, its arrays, the rules,
+#: the terms, the image state, the Canny term's statistics and the scratch.
+_Setup = namedtuple("_Setup", "prep arrays rules terms images canny_stats scratch")
+
+
+def _setup(mesh: Mesh, target_faces: int, policy: Policy, verify, borders, image,
+           max_collapses) -> _Setup:
+    """The arrays at unit scale, the rules, the terms and the image state of a run."""
     prep = _prepare(mesh, policy, image)
     _check_canny(mesh, policy, borders, image)
     arrays = _quadrics(mesh, policy, prep)
@@ -102,10 +117,28 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     canny_stats = {}
     if policy.canny_weight != 0.0 and policy.canny_units == "base-cost":
         terms, canny_stats = _canny_units(arrays, rules, terms, images)
-    scratch = new_scratch(len(arrays.P))
-    run = _phases(arrays, rules, terms, scratch, images, prep.kinds, policy.stall_rotations)
-    return _result(mesh, target_faces, policy, image, prep, arrays, rules, images, run,
-                   canny_stats, start)
+    return _Setup(prep=prep, arrays=arrays, rules=rules, terms=terms, images=images,
+                  canny_stats=canny_stats, scratch=new_scratch(len(arrays.P)))
+
+
+#: The parts of the engine's kernels that :func:`compile_part` compiles on its own.
+PARTS = ("costing", "collapse")
+
+
+def compile_part(part: str, mesh: Mesh) -> None:
+    """Compile one part of the engine's kernels for ``mesh``'s types (or read it from
+    numba's cache) without simplifying: ``"costing"``, the first costing of every edge
+    (:func:`first_costs`, with every cost term); ``"collapse"``, how the loop takes a
+    collapse (:func:`methods.engine.loop.compile_collapse`). Two processes compile the
+    two at once; the loop (:func:`_run`), compiled after them, reads both from the cache
+    (``bench warmup``, :mod:`bench.run.warmup`)."""
+    if part not in PARTS:
+        raise ValueError(f"unknown part of the engine's kernels {part!r}; one of {PARTS}")
+    s = _setup(mesh, max(1, mesh.n_faces // 2), DEFAULT_POLICY, False, None, None, None)
+    if part == "costing":
+        first_costs(s.arrays, s.rules, s.terms, s.scratch, s.images)
+    else:
+        compile_collapse(s.arrays, s.rules, s.terms, s.scratch, s.images, s.prep.kinds)
 
 
 def _simplify_scaled(mesh: Mesh, exponent: int, target_faces: int, policy: Policy, verify,
