@@ -33,7 +33,10 @@ import numpy as np
 from numba import njit
 
 from bench.core.metric import Metric, Value
+from bench.core.numba_cache import lock_cache_writes
 from metrics.shading import LUMA_WEIGHTS, luminance  # re-exported: callers of the metrics use them
+
+lock_cache_writes()  # several processes compile at once (bench.core.numba_cache)
 
 __all__ = ["luminance", "d_rms", "ssim_mean", "flip_mean", "FLIP_VIEWS", "FLIP_PPD",
            "LUMA_WEIGHTS", "D_RMS", "SSIM", "FLIP"]

@@ -22,6 +22,9 @@ from numba import njit
 
 from bench.core.mesh import Mesh
 from bench.core.metric import Metric
+from bench.core.numba_cache import lock_cache_writes
+
+lock_cache_writes()  # several processes compile at once (bench.core.numba_cache)
 
 __all__ = ["NEVER_SEEN_SHARE", "never_seen_share", "seen_faces"]
 

@@ -29,6 +29,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from bench.core.numba_cache import lock_cache_writes
+
+lock_cache_writes()  # several processes compile at once (bench.core.numba_cache)
+
 __all__ = ["corner_lists", "corners"]
 
 

@@ -51,7 +51,10 @@ from llvmlite import ir
 from numba import get_num_threads, njit, prange, types
 from numba.extending import intrinsic, overload
 
+from bench.core.numba_cache import lock_cache_writes
 from metrics.shading import BACKGROUND, DEFAULT_CONSTANTS, LUMA_B, LUMA_G, LUMA_R, SHADINGS
+
+lock_cache_writes()  # several processes compile at once (bench.core.numba_cache)
 
 __all__ = ["BACKGROUND", "SHADINGS", "face_id_buffers", "rasterize_luminance"]
 

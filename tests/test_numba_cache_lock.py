@@ -1,0 +1,33 @@
+"""numba's cache saves hold a lock (bench.core.numba_cache), so two processes saving two
+signatures of one function cannot leave an index that points at the other's code."""
+
+from __future__ import annotations
+
+import fcntl
+import threading
+
+from numba.core import caching
+
+import methods.corners  # noqa: F401 - a module with cached kernels installs the lock
+from bench.core.numba_cache import LOCK_NAME, lock_cache_writes
+
+
+def test_a_module_with_cached_kernels_installs_the_lock_once():
+    save = caching.IndexDataCacheFile.save
+    assert getattr(save, "locked", False)
+    lock_cache_writes()
+    assert caching.IndexDataCacheFile.save is save  # not wrapped twice
+
+
+def test_a_save_waits_while_another_holds_the_lock(tmp_path):
+    cache = caching.IndexDataCacheFile(str(tmp_path), "kernel-1.py311", source_stamp=(1.0, 2))
+    with open(tmp_path / LOCK_NAME, "a") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        saving = threading.Thread(target=cache.save, args=(("sig", "magic"), b"code"))
+        saving.start()
+        saving.join(0.5)
+        assert saving.is_alive(), "the save did not wait for the lock"
+        assert not (tmp_path / "kernel-1.py311.nbi").exists()
+    saving.join(10)  # the lock is released when its file closes
+    assert not saving.is_alive()
+    assert cache.load(("sig", "magic")) == b"code"
