@@ -31,3 +31,21 @@ def test_a_save_waits_while_another_holds_the_lock(tmp_path):
     saving.join(10)  # the lock is released when its file closes
     assert not saving.is_alive()
     assert cache.load(("sig", "magic")) == b"code"
+
+
+def test_a_lock_file_that_cannot_be_opened_does_not_stop_the_save(tmp_path, monkeypatch):
+    import builtins
+
+    real_open = builtins.open
+
+    def no_lock(path, *args, **kwargs):
+        if str(path).endswith(LOCK_NAME):
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", no_lock)
+    cache = caching.IndexDataCacheFile(str(tmp_path), "kernel-2.py311", source_stamp=(1.0, 2))
+    cache.save(("sig", "magic"), b"code")
+    monkeypatch.undo()
+    assert cache.load(("sig", "magic")) == b"code"
+    assert not (tmp_path / LOCK_NAME).exists()

@@ -36,7 +36,11 @@ def lock_cache_writes() -> None:
 
     @functools.wraps(save)
     def locked_save(self, key, data):
-        with open(os.path.join(self._cache_path, LOCK_NAME), "a") as lock:
+        try:
+            lock = open(os.path.join(self._cache_path, LOCK_NAME), "a")  # noqa: SIM115
+        except OSError:  # e.g. a shared cache's lock file made by another user
+            return save(self, key, data)
+        with lock:
             fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file is closed
             return save(self, key, data)
 
