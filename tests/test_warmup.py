@@ -84,8 +84,9 @@ def test_a_split_family_compiles_its_parts_first_and_its_builder_waits_for_them(
 
 
 def test_the_engine_compiles_in_parts_and_names_an_unknown_one():
-    from methods.engine.simplify import compile_part
+    from methods.engine.simplify import PARTS, compile_part
 
+    assert warmup.SPLIT["engine"] == ("methods.engine.simplify", PARTS)
     plain, textured = warmup.tiny_meshes()
     for part in ("costing", "collapse"):
         compile_part(part, plain)
