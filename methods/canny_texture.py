@@ -63,7 +63,7 @@ from typing import Literal
 from bench.core.errors import InputError
 from bench.core.mesh import Mesh
 from bench.core.method import Method, SimplifyResult, bounded
-from methods.engine.policy import Policy
+from methods.engine.policy import MAX_MOVE, Policy
 from methods.engine.simplify import simplify_mesh
 
 __all__ = ["CannyTexture", "crossing_share"]
@@ -77,7 +77,9 @@ class CannyTexture(Method):
     # 5: the penalty in the base cost's units (canny_units="base-cost"): as an area
     # ratio added to quadrics at unit diagonal it outweighed every quadric cost (by
     # 4 million times the mean on the torus) and so depended on our normalisation
-    version = "6"  # 6: the engine's placement guard, parts and materials kept
+    # 6: the engine's placement guard, parts and materials kept; 7: the engine's move
+    # bound, the seam rule released when stalled (as ``quadric`` 7)
+    version = "7"
     summary = "quadric (or memoryless) cost + Canny texture-border penalty (own engine)"
     reference = ("González, Castelló & Chover, A texture-based metric extension for "
                  "simplification methods, GRAPP 2007")
@@ -103,10 +105,11 @@ class CannyTexture(Method):
             return Policy(placement="memoryless", quadric_weight=0.0, memoryless_weight=1.0,
                           boundary_weight=0.0, canny_weight=p.canny_weight,
                           canny_units=p.canny_units,
-                          max_normal_rotation=p.max_normal_rotation)
+                          max_normal_rotation=p.max_normal_rotation, max_move=MAX_MOVE,
+                          stall_seams=True)
         return Policy(canny_weight=p.canny_weight, canny_units=p.canny_units,
                       max_normal_rotation=p.max_normal_rotation,
-                      texture_weight=p.texture_weight)
+                      texture_weight=p.texture_weight, max_move=MAX_MOVE, stall_seams=True)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         from methods.engine.terms.canny import texture_borders

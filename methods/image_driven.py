@@ -50,7 +50,7 @@ from bench.core import progress
 from bench.core.errors import ParamError
 from bench.core.mesh import Mesh
 from bench.core.method import Method, SimplifyResult, bounded
-from methods.engine.policy import Policy
+from methods.engine.policy import MAX_MOVE, Policy
 from methods.engine.scale import at_workable_scale
 from methods.engine.simplify import simplify_mesh
 from methods.imaging.views import interior_mask, view_directions
@@ -64,7 +64,9 @@ PRESIMPLIFY_RATIO = 10
 class ImageDriven(Method):
     name = "image-driven"
     kernels = ("engine", "imaging")
-    version = "2"  # 2: the engine's placement guard, parts and materials kept
+    # 2: the engine's placement guard, parts and materials kept; 3: the engine's move
+    # bound, the seam rule released when stalled (as ``quadric`` 7)
+    version = "3"
     summary = ("collapse cost = change of the squared luminance error over 20 views, "
                "incremental numba renderer")
     reference = "Lindstrom & Turk, Image-driven simplification, ACM TOG 19(3), 2000"
@@ -138,12 +140,14 @@ class ImageDriven(Method):
         t = time.perf_counter()
         # memoryless placement (§4.1), the image cost (§4.2) and the geometric tie-breaker
         policy = Policy(placement="memoryless", quadric_weight=0.0,
-                        memoryless_weight=p.geometry_weight, boundary_weight=0.0)
+                        memoryless_weight=p.geometry_weight, boundary_weight=0.0,
+                        max_move=MAX_MOVE, stall_seams=True)
         progress.stage("collapsing by image error")
         result = simplify_mesh(work, target_faces, policy, image=term)
         stats["image_seconds"] = time.perf_counter() - t
         for key, value in result.stats.items():
             if key in ("collapses", "cost_evaluations", "image_evaluations", "pixels_shaded",
-                       "face_rows", "tile_rebuilds", "rejections") or key.endswith("_share"):
+                       "face_rows", "tile_rebuilds", "rejections", "stall_phases",
+                       "stall_collapses") or key.endswith("_share"):
                 stats[key] = value
         return SimplifyResult(result.mesh, stats, result.stop_reason)

@@ -14,11 +14,14 @@ minimised over its own UV, and each wedge's new UV is that minimiser. ``texture_
 (w, on geometry normalised to a unit bounding-box diagonal) defaults to 1, as MeshLab's
 ``extratcoordw``; 0 gives the 1997 metric with UVs interpolated along the edge.
 
-When no valid collapse remains above the target (every candidate left would fold a
-face over at the quadric's point, as on a coarse multi-part asset), the run goes on
-with the fold-over limit widened to 120°, 150° and 180° in turn (``stall="widen"``,
-the engine's stall rule: ``Policy.stall_rotations``); ``stall="stop"`` stops there
-and says why. Results that reach their target without it are the same either way.
+A collapse leaves the planes of the faces it replaces by at most 5 % of the model's
+bounding-box diagonal (the engine's move bound, ``Policy.max_move``): on a coarse
+multi-part asset the cheapest collapses left under the seam rule would otherwise drag a
+corner across a part. When no valid
+collapse remains above the target, the run goes on with the seam rule released, then
+with the fold-over limit widened to 120°, 150° and 180° in turn, then without the move
+bound (``stall="widen"``, the engine's stall rule: ``Policy.stall_rotations``);
+``stall="stop"`` has neither the bound nor the phases, and stops there and says why.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from typing import Literal
 
 from bench.core.mesh import Mesh
 from bench.core.method import Method, SimplifyResult, bounded
-from methods.engine.policy import STALL_ROTATIONS, Policy
+from methods.engine.policy import MAX_MOVE, STALL_ROTATIONS, Policy
 from methods.engine.simplify import simplify_mesh
 
 __all__ = ["Quadric"]
@@ -41,8 +44,10 @@ class Quadric(Method):
     # collapse (its quadric and UV were counted once per face of the edge); 4: the
     # placement guard, parts and materials kept (methods.engine: real assets); 5: the
     # stall rule (a stalled run goes on with a wider fold-over limit; only results that
-    # stopped above their target change)
-    version = "6"
+    # stopped above their target change); 7: the move bound, the seam rule released
+    # first when stalled (the milk truck's cut-off corners; changes results where a
+    # collapse would leave its faces' planes by more than 5 % of the diagonal)
+    version = "7"
     summary = "Garland-Heckbert 97/98 quadrics (texture per wedge) on the suite's engine"
     reference = ("Garland & Heckbert, Surface simplification using quadric error metrics, "
                  "SIGGRAPH 1997; ... with color and texture, IEEE Visualization 1998")
@@ -59,10 +64,12 @@ class Quadric(Method):
 
     def policy(self) -> Policy:
         p = self.params
+        widen = p.stall == "widen"
         return Policy(placement=p.placement, boundary_weight=p.boundary_weight,
                       max_normal_rotation=p.max_normal_rotation, boundary_lock=p.boundary_lock,
                       texture_weight=p.texture_weight,
-                      stall_rotations=(STALL_ROTATIONS if p.stall == "widen" else ()))
+                      stall_rotations=STALL_ROTATIONS if widen else (),
+                      max_move=MAX_MOVE if widen else float("inf"), stall_seams=widen)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         result = simplify_mesh(mesh, target_faces, self.policy())

@@ -578,3 +578,42 @@ def test_textured_box_keeps_its_corners_at_every_budget():
     assert budget == 12
     d = hausdorff(mesh, result.mesh, samples=3000)  # MeshLab's single precision
     assert d["forward_max"] < 1e-6 and d["backward_max"] < 1e-6, d
+
+
+# -- the move bound and the stall phases -------------------------------------------------
+
+def test_the_move_bound_measures_the_way_off_the_faces_planes():
+    """A new position far across the plane of the faces around the edge is within the
+    bound; one off that plane by more than the bound is not; a dead face's plane does
+    not count."""
+    from collections import namedtuple
+
+    from methods.engine.loop import _beyond_reach
+
+    P = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, -1]], float)
+    F = np.array([[0, 1, 2], [0, 2, 3], [1, 0, 4]])  # two flat faces, one tilted
+    vhead, cnext = corner_lists(F, len(P))
+    falive = np.array([True, True, False])
+    mesh = namedtuple("Arrays", "P F vhead cnext falive")(P, F, vhead, cnext, falive)
+    assert not _beyond_reach(0, 1, np.array([10.0, -3.0, 0.0]), mesh, 0.05)
+    assert not _beyond_reach(0, 1, np.array([0.5, 0.0, 0.04]), mesh, 0.05)
+    assert _beyond_reach(0, 1, np.array([0.5, 0.0, 0.06]), mesh, 0.05)
+    assert _beyond_reach(3, 2, np.array([0.5, 0.0, -0.06]), mesh, 0.05)
+    assert not _beyond_reach(0, 1, np.array([0.5, 0.0, 9.0]), mesh, np.inf)
+    falive[2] = True  # the tilted face's plane now bounds the move across the flat ones
+    assert _beyond_reach(0, 1, np.array([10.0, -3.0, 0.0]), mesh, 0.05)
+
+
+def test_the_stall_phases_release_seams_then_widen_then_lift_the_bound():
+    from methods.engine.simplify import _stall_phases
+    from methods.engine.state import Rules
+
+    rules = Rules(*([None] * len(Rules._fields)))._replace(seam_rule=True)
+    policy = Policy(stall_rotations=(120.0, 180.0), stall_seams=True, max_move=0.05)
+    names = [name for name, _ in _stall_phases(policy, rules)]
+    assert names == ["seams released", "120 degrees", "180 degrees", "move bound lifted"]
+    assert [name for name, _ in _stall_phases(policy, rules._replace(seam_rule=False))] \
+        == names[1:]  # no seams to release
+    assert _stall_phases(Policy(), rules) == []
+    with pytest.raises(ValueError, match="max_move"):
+        Policy(max_move=0.0)

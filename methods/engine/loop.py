@@ -16,12 +16,14 @@ Every helper takes a few named structures of :mod:`methods.engine.state`.
 from __future__ import annotations
 
 import heapq
+import math
 
 import numba
 import numpy as np
 from numba import njit, types
 from numba.typed import Dict
 
+from methods.corners import corners
 from methods.engine.borrow import borrowed
 from methods.engine.collapse import _collapse
 from methods.engine.cost import _evaluate
@@ -31,6 +33,7 @@ from methods.engine.policy import (
     _N_REJECTIONS,
     REJECT_CAPACITY,
     REJECT_LAST_OF_PART,
+    REJECT_MOVE_BOUND,
     REJECT_SEAM_RULE,
     VALID,
 )
@@ -153,7 +156,35 @@ def _check_candidate(u, v, fresh, mesh, rules, scratch):
                   scratch.efaces, rules.cos_limit, rules.boundary_lock)
     if code == VALID and rules.keep_parts and empties_a_part(u, v, mesh, scratch):
         return REJECT_LAST_OF_PART
+    if code == VALID and _beyond_reach(u, v, scratch.p, mesh, rules.max_move):
+        return REJECT_MOVE_BOUND
     return code
+
+
+@njit(cache=True, _nrt=False)
+def _beyond_reach(u, v, p, mesh, r):
+    """True when ``p`` lies farther than ``r`` (the move bound) from the plane of a live
+    face around u or v: the collapse would leave the surface it replaces by more than
+    that. A move within the faces' planes (across a flat panel) is never beyond reach."""
+    if r == np.inf:
+        return False
+    P, F = mesh.P, mesh.F
+    for x in (u, v):
+        for c in corners(x, mesh.vhead, mesh.cnext):
+            f = c // 3
+            if not mesh.falive[f]:
+                continue
+            a, b, d = F[f, 0], F[f, 1], F[f, 2]
+            e1x, e1y, e1z = P[b, 0] - P[a, 0], P[b, 1] - P[a, 1], P[b, 2] - P[a, 2]
+            e2x, e2y, e2z = P[d, 0] - P[a, 0], P[d, 1] - P[a, 1], P[d, 2] - P[a, 2]
+            nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+            length = math.sqrt(nx * nx + ny * ny + nz * nz)
+            if length == 0.0:
+                continue
+            off = nx * (p[0] - P[a, 0]) + ny * (p[1] - P[a, 1]) + nz * (p[2] - P[a, 2])
+            if abs(off) > r * length:
+                return True
+    return False
 
 
 @njit(cache=True)

@@ -46,7 +46,10 @@ CANNY_UNITS = ("area", "base-cost")
 #     of a hundred faces at a UV sphere's pole; methods.engine.capacity), also an
 #     infinite cost;
 #   - last faces of a part: with ``keep_parts``, the collapse would remove the last
-#     faces of a connected component or of a material (methods.engine.parts).
+#     faces of a connected component or of a material (methods.engine.parts);
+#   - move bound: with a finite ``max_move``, the new position lies farther than that
+#     fraction of the model's bounding-box diagonal from the plane of a face around
+#     either end (methods.engine.loop._beyond_reach).
 # Each code is 1 + its name's index in REJECTIONS, the order of the ``rejects`` counts.
 VALID = 0
 REJECT_LINK_CONDITION = 1
@@ -58,11 +61,12 @@ REJECT_BOUNDARY_LOCK = 6
 REJECT_SEAM_RULE = 7
 REJECT_CAPACITY = 8
 REJECT_LAST_OF_PART = 9
+REJECT_MOVE_BOUND = 10
 
 #: Rejection counters by name, in the order of the kernel's ``rejects`` array.
 REJECTIONS = ("link condition", "boundary pinch", "duplicate face", "fold-over",
               "non-manifold edge", "boundary lock", "seam rule", "capacity",
-              "last faces of a part")
+              "last faces of a part", "move bound")
 
 
 STOP_REASONS = {0: "reached the target", 1: "no valid collapse remains"}
@@ -71,6 +75,12 @@ STOP_REASONS = {0: "reached the target", 1: "no valid collapse remains"}
 #: use it: widened in steps, so a stalled run first takes the collapses that turn a
 #: face least.
 STALL_ROTATIONS = (120.0, 150.0, 180.0)
+
+#: The move bound of the methods that use one (``Policy.max_move``): before the stall
+#: rule's last phase, a collapse leaves the planes of the faces it replaces by at most
+#: this fraction of the model's bounding-box diagonal (docs/design-notes.md, "Corners
+#: cut on coarse multi-part assets").
+MAX_MOVE = 0.05
 
 
 # Vertex kinds and the rules over them (methods.engine.cost._forced_end reads the
@@ -153,9 +163,27 @@ class Policy:
         edge costed afresh and the quadrics kept. On a coarse multi-part mesh the
         quadric's point can turn some face by more than 90° for every candidate left
         (the glTF milk truck stopped at 164 faces for a target of 109); a wider limit
-        lets the cheapest of them go. Results that reached the target are unchanged by
-        it; the collapses each phase took are in ``stats["stall_collapses"]``. Empty
-        (the default): stop.
+        lets the cheapest of them go. The phases in order: the seam rule released
+        (``stall_seams``), each of these angles, the move bound lifted (a finite
+        ``max_move``); each goes on only if the one before stopped. Results that reached
+        the target are unchanged by it; the collapses each phase took are in
+        ``stats["stall_collapses"]``, the phases' names in ``stats["stall_phases"]``.
+        Empty, without ``stall_seams`` and ``max_move`` (the default): stop.
+    max_move : float
+        The move bound: the new position may lie no farther than this fraction of the
+        model's bounding-box diagonal from the plane of any face around either end of
+        the edge, before the collapse (a collapse that would is rejected under the rule
+        "move bound"). A move within those planes, across a flat panel, is never
+        bounded. On a coarse multi-part asset the cheapest collapses left under the seam
+        rule can drag a corner across its part, though no face folds. The stall rule
+        lifts the bound in its last phase, so the target is still reached. ``inf`` (the
+        default): no bound.
+    stall_seams : bool
+        The stall rule's first phase releases the seam rule: seam vertices then move
+        like any other, their UVs from the wedge quadrics (``texture_weight``) or
+        interpolated, each kept in its material's tile. Under the seam rule a coarse
+        textured part runs out of collapses that keep every chart long before its
+        geometry does.
     """
 
     placement: str = "optimal"
@@ -173,6 +201,8 @@ class Policy:
     boundary_rule: bool = False
     keep_parts: bool = True
     stall_rotations: tuple[float, ...] = ()
+    max_move: float = float("inf")
+    stall_seams: bool = False
 
     def __post_init__(self):
         if self.placement not in PLACEMENTS:
@@ -184,6 +214,9 @@ class Policy:
         if any(not a < b <= 180 for a, b in zip(widening, widening[1:])):
             raise ValueError("stall_rotations must increase from max_normal_rotation to at "
                              "most 180 degrees")
+        if not self.max_move > 0:
+            raise ValueError("max_move must be positive (a fraction of a part's diagonal), "
+                             "or inf for no bound")
         if self.canny_units not in CANNY_UNITS:
             raise ValueError(f"unknown canny_units {self.canny_units!r}; choose one of "
                              f"{', '.join(CANNY_UNITS)}")

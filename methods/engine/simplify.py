@@ -95,7 +95,7 @@ def simplify_mesh(mesh: Mesh, target_faces: int, policy: Policy = DEFAULT_POLICY
     start = time.perf_counter()
     s = _setup(mesh, target_faces, policy, verify, borders, image, max_collapses)
     run = _phases(s.arrays, s.rules, s.terms, s.scratch, s.images, s.prep.kinds,
-                  policy.stall_rotations)
+                  _stall_phases(policy, s.rules))
     return _result(mesh, target_faces, policy, image, s.prep, s.arrays, s.rules, s.images,
                    run, s.canny_stats, start)
 
@@ -160,7 +160,7 @@ def _result(mesh: Mesh, target_faces: int, policy: Policy, image, prep, arrays, 
     """The :class:`EngineResult` of a finished run (started at ``start``, a
     ``time.perf_counter()``): the simplified mesh in the input's numbering, the stop
     reason, the statistics and the log."""
-    stopped, evaluations, mismatches, rejects, log, stall_collapses = run
+    stopped, evaluations, mismatches, rejects, log, stall_phases, stall_collapses = run
     verify = rules.verify
     image_stats = {} if image is None else image.statistics(
         mesh, images.img, verify, arrays.P, arrays.F, arrays.FW, arrays.uv, arrays.falive,
@@ -173,8 +173,10 @@ def _result(mesh: Mesh, target_faces: int, policy: Policy, image, prep, arrays, 
     reason = _stop_reason(stopped, int(arrays.falive.sum()), target_faces, rejects)
     stats = _statistics(int(log.count[LOG_COLLAPSES]), evaluations, mismatches, rejects,
                         prep.kinds, verify, time.perf_counter() - start)
-    if policy.stall_rotations:
+    if _has_stall_rule(policy):
         stats["stall_collapses"] = stall_collapses
+        if policy.stall_seams or math.isfinite(policy.max_move):
+            stats["stall_phases"] = stall_phases
     stats.update(image_stats)
     stats.update(canny_stats)
     if tiles is not None:
@@ -196,25 +198,45 @@ def _check_canny(mesh: Mesh, policy: Policy, borders, image) -> None:
                          "rendering; it does not combine with the image term")
 
 
-def _phases(arrays: MeshArrays, rules: Rules, terms, scratch, images, kinds, rotations):
-    """The loop, then the stall rule (:attr:`Policy.stall_rotations`): while it stops
-    with no valid collapse, the loop again at the next rotation's fold-over limit, with
-    the collapses the run has left. Returns (stopped, evaluations, mismatches, rejects,
-    log (the phases' logs joined), collapses per stall phase)."""
+def _has_stall_rule(policy: Policy) -> bool:
+    return bool(policy.stall_rotations or policy.stall_seams
+                or math.isfinite(policy.max_move))
+
+
+def _stall_phases(policy: Policy, rules: Rules) -> list[tuple[str, dict]]:
+    """The stall rule's phases (:attr:`Policy.stall_rotations`) as (name, what each
+    changes in the :data:`~methods.engine.state.Rules`), in order; each keeps what the
+    ones before it changed."""
+    phases = []
+    if policy.stall_seams and rules.seam_rule:
+        phases.append(("seams released", {"seam_rule": False}))
+    for degrees in policy.stall_rotations:
+        phases.append((f"{degrees:g} degrees", {"cos_limit": math.cos(math.radians(degrees))}))
+    if math.isfinite(policy.max_move):
+        phases.append(("move bound lifted", {"max_move": math.inf}))
+    return phases
+
+
+def _phases(arrays: MeshArrays, rules: Rules, terms, scratch, images, kinds, phases):
+    """The loop, then the stall rule (:func:`_stall_phases`): while it stops with no
+    valid collapse, the loop again under the next phase's rules, with the collapses the
+    run has left. Returns (stopped, evaluations, mismatches, rejects, log (the phases'
+    logs joined), the names of the stall phases that ran, collapses per stall phase)."""
     stopped, evaluations, mismatches, rejects, log = _loop(arrays, rules, terms, scratch,
                                                            images, kinds)
-    stall_collapses = []
+    names, stall_collapses = [], []
     allowed = rules.max_collapses  # in all: the phases' logs are joined into ``log``
-    for degrees in rotations:
+    for name, changes in phases:
         if not stopped or int(log.count[LOG_COLLAPSES]) >= allowed:
             break
-        rules = rules._replace(cos_limit=math.cos(math.radians(degrees)),
+        rules = rules._replace(**changes,
                                max_collapses=allowed - int(log.count[LOG_COLLAPSES]))
         stopped, more, mm, rj, rest = _loop(arrays, rules, terms, scratch, images, kinds)
+        names.append(name)
         stall_collapses.append(int(rest.count[LOG_COLLAPSES]))
         evaluations, mismatches, rejects = evaluations + more, mismatches + mm, rejects + rj
         log = _joined(log, rest)
-    return stopped, evaluations, mismatches, rejects, log, stall_collapses
+    return stopped, evaluations, mismatches, rejects, log, names, stall_collapses
 
 
 def _stop_reason(stopped, faces: int, target_faces: int, rejects) -> str | None:
@@ -363,7 +385,7 @@ def _rules(mesh: Mesh, policy: Policy, image, prep: _Prepared, target_faces, ver
                  use_r5=bool(policy.r5_uv and has_uv and policy.placement == "memoryless"),
                  uv_fix=bool(policy.uv_correction and has_uv),
                  keep_parts=bool(policy.keep_parts), target=int(target_faces),
-                 max_collapses=limit)
+                 max_collapses=limit, max_move=float(policy.max_move) * WORKING_DIAGONAL)
 
 
 def _terms(policy: Policy, prep: _Prepared, borders, rules: Rules) -> Terms:

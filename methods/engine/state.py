@@ -84,10 +84,11 @@ MeshArrays = namedtuple("MeshArrays", "P Q F FW falive vhead cnext valive vbound
 #: (:data:`Weights`), ``cos_limit`` (fold-over), and booleans ``boundary_lock``,
 #: ``seam_rule``, ``boundary_rule``, ``verify``, ``has_uv``, ``use_r5`` (R^5 UVs),
 #: ``uv_fix`` (González 2008's UV correction), ``keep_parts`` (methods.engine.parts),
-#: ``target`` faces, ``max_collapses``.
+#: ``target`` faces, ``max_collapses``, ``max_move`` (the move bound at unit diagonal;
+#: infinite: none).
 Rules = namedtuple("Rules", "placement weights cos_limit boundary_lock seam_rule "
                             "boundary_rule verify has_uv use_r5 uv_fix keep_parts target "
-                            "max_collapses")
+                            "max_collapses max_move")
 
 #: Read-only inputs of the cost terms: Canny ``borders`` (h, w) bool,
 #: ``canny_per_area`` (the Canny penalty per unit of an edge's face area, before the
