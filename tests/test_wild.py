@@ -218,15 +218,23 @@ def test_no_corner_of_the_truck_is_cut_off(method):
     box's corners along its sides (a Hausdorff distance of 0.257 of the diagonal,
     canny-texture 0.203, image-driven 0.167, against qslim-texture's 0.0675). The move
     bound rejects them and the stall rule releases the seams instead: within twice
-    qslim-texture's distance."""
+    qslim-texture's distance, every face's UVs still in its own material's tile."""
+    from bench.io.atlas import materials_of, mixed_faces, tiles_of
     from metrics.geometry import hausdorff
 
     mesh = quiet_load(asset("milk-truck/CesiumMilkTruck.glb"))
     reference = registry("method").load("qslim-texture")().simplify(mesh, 109, None).mesh
-    out = registry("method").load(method)().simplify(mesh, 109, None).mesh
+    result = registry("method").load(method)().simplify(mesh, 109, None)
+    out = result.mesh
     assert out.n_faces in (108, 109)
+    assert result.stats["stall_phases"][0] == "seams released"
     limit = 2 * hausdorff(mesh, reference)["symmetric_max"]
     assert hausdorff(mesh, out)["symmetric_max"] <= limit
+    assert not mixed_faces(out).any()
+    tile = tiles_of(materials_of(mesh))[face_materials(out)]
+    uv = out.uv[out.faces]
+    assert (uv >= tile[:, None, :2]).all() and (uv <= tile[:, None, 2:]).all()
+    assert (np.bincount(face_materials(out), minlength=4) > 0).all()  # the engine's rule
 
 
 def test_every_stall_phase_runs_until_the_target():
