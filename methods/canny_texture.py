@@ -98,6 +98,8 @@ class CannyTexture(Method):
         high: float = bounded(0.6, ge=0, le=1)
         max_normal_rotation: float = bounded(90.0, gt=0, le=180)
         texture_weight: float = bounded(1.0, ge=0)  # of the quadric base, as in ``quadric``
+        #: the engine's move bound (a fraction of the diagonal), as in ``quadric``
+        max_move: float = bounded(MAX_MOVE, gt=0)
 
     def policy(self) -> Policy:
         p = self.params
@@ -105,11 +107,11 @@ class CannyTexture(Method):
             return Policy(placement="memoryless", quadric_weight=0.0, memoryless_weight=1.0,
                           boundary_weight=0.0, canny_weight=p.canny_weight,
                           canny_units=p.canny_units,
-                          max_normal_rotation=p.max_normal_rotation, max_move=MAX_MOVE,
+                          max_normal_rotation=p.max_normal_rotation, max_move=p.max_move,
                           stall_seams=True)
         return Policy(canny_weight=p.canny_weight, canny_units=p.canny_units,
                       max_normal_rotation=p.max_normal_rotation,
-                      texture_weight=p.texture_weight, max_move=MAX_MOVE, stall_seams=True)
+                      texture_weight=p.texture_weight, max_move=p.max_move, stall_seams=True)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         from methods.engine.terms.canny import texture_borders

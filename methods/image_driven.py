@@ -84,6 +84,8 @@ class ImageDriven(Method):
         interior_views: int = bounded(0, ge=0)
         #: weight of the memoryless cost added as a tie-breaker (see the module notes)
         geometry_weight: float = bounded(1.0, ge=0)
+        #: the engine's move bound (a fraction of the diagonal; inf: none)
+        max_move: float = bounded(MAX_MOVE, gt=0)
 
     def _check(self):
         p = self.params
@@ -141,7 +143,7 @@ class ImageDriven(Method):
         # memoryless placement (§4.1), the image cost (§4.2) and the geometric tie-breaker
         policy = Policy(placement="memoryless", quadric_weight=0.0,
                         memoryless_weight=p.geometry_weight, boundary_weight=0.0,
-                        max_move=MAX_MOVE, stall_seams=True)
+                        max_move=p.max_move, stall_seams=True)
         progress.stage("collapsing by image error")
         result = simplify_mesh(work, target_faces, policy, image=term)
         stats["image_seconds"] = time.perf_counter() - t

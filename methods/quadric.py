@@ -14,7 +14,7 @@ minimised over its own UV, and each wedge's new UV is that minimiser. ``texture_
 (w, on geometry normalised to a unit bounding-box diagonal) defaults to 1, as MeshLab's
 ``extratcoordw``; 0 gives the 1997 metric with UVs interpolated along the edge.
 
-A collapse leaves the planes of the faces it replaces by at most 5 % of the model's
+A collapse leaves the planes of the faces it replaces by at most a tenth of the model's
 bounding-box diagonal (the engine's move bound, ``Policy.max_move``): on a coarse
 multi-part asset the cheapest collapses left under the seam rule would otherwise drag a
 corner across a part. When no valid
@@ -46,7 +46,7 @@ class Quadric(Method):
     # stall rule (a stalled run goes on with a wider fold-over limit; only results that
     # stopped above their target change); 7: the move bound, the seam rule released
     # first when stalled (the milk truck's cut-off corners; changes results where a
-    # collapse would leave its faces' planes by more than 5 % of the diagonal)
+    # collapse would leave its faces' planes by more than a tenth of the diagonal)
     version = "7"
     summary = "Garland-Heckbert 97/98 quadrics (texture per wedge) on the suite's engine"
     reference = ("Garland & Heckbert, Surface simplification using quadric error metrics, "
@@ -61,6 +61,8 @@ class Quadric(Method):
         boundary_lock: bool = False
         texture_weight: float = bounded(1.0, ge=0)
         stall: Literal["widen", "stop"] = "widen"
+        #: the engine's move bound with ``stall="widen"`` (a fraction of the diagonal)
+        max_move: float = bounded(MAX_MOVE, gt=0)
 
     def policy(self) -> Policy:
         p = self.params
@@ -69,7 +71,7 @@ class Quadric(Method):
                       max_normal_rotation=p.max_normal_rotation, boundary_lock=p.boundary_lock,
                       texture_weight=p.texture_weight,
                       stall_rotations=STALL_ROTATIONS if widen else (),
-                      max_move=MAX_MOVE if widen else float("inf"), stall_seams=widen)
+                      max_move=p.max_move if widen else float("inf"), stall_seams=widen)
 
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
         result = simplify_mesh(mesh, target_faces, self.policy())

@@ -80,7 +80,7 @@ STALL_ROTATIONS = (120.0, 150.0, 180.0)
 #: rule's last phase, a collapse leaves the planes of the faces it replaces by at most
 #: this fraction of the model's bounding-box diagonal (docs/design-notes.md, "Corners
 #: cut on coarse multi-part assets").
-MAX_MOVE = 0.05
+MAX_MOVE = 0.1
 
 
 # Vertex kinds and the rules over them (methods.engine.cost._forced_end reads the
