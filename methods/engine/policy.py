@@ -78,8 +78,8 @@ STALL_ROTATIONS = (120.0, 150.0, 180.0)
 
 #: The move bound of the methods that use one (``Policy.max_move``): before the stall
 #: rule's last phase, a collapse leaves the planes of the faces it replaces by at most
-#: this fraction of the model's bounding-box diagonal (docs/design-notes.md, "Corners
-#: cut on coarse multi-part assets").
+#: this fraction of the model's bounding-box diagonal (docs/maintainers.md, "The move
+#: bound measures the way off the surface", has the measurements that chose it).
 MAX_MOVE = 0.1
 
 
