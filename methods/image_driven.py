@@ -84,7 +84,7 @@ class ImageDriven(Method):
         interior_views: int = bounded(0, ge=0)
         #: weight of the memoryless cost added as a tie-breaker (see the module notes)
         geometry_weight: float = bounded(1.0, ge=0)
-        #: the engine's move bound (a fraction of the diagonal; inf: none)
+        #: the engine's move bound, a fraction of the diagonal (as in ``quadric``)
         max_move: float = bounded(MAX_MOVE, gt=0)
 
     def _check(self):

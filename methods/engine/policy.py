@@ -215,7 +215,7 @@ class Policy:
             raise ValueError("stall_rotations must increase from max_normal_rotation to at "
                              "most 180 degrees")
         if not self.max_move > 0:
-            raise ValueError("max_move must be positive (a fraction of a part's diagonal), "
+            raise ValueError("max_move must be positive (a fraction of the model's diagonal), "
                              "or inf for no bound")
         if self.canny_units not in CANNY_UNITS:
             raise ValueError(f"unknown canny_units {self.canny_units!r}; choose one of "
