@@ -70,7 +70,14 @@ Topology rules (each rejection is counted and reported):
   UV sphere's pole) is refused and tried again once its neighbourhood shrank
   (:mod:`methods.engine.capacity`);
 - *last faces of a part*: with ``keep_parts`` (the default) no collapse removes the
-  last faces of a connected component or of a material (:mod:`methods.engine.parts`).
+  last faces of a connected component or of a material (:mod:`methods.engine.parts`);
+- *move bound*: with a finite ``max_move``, the new position lies no farther than that
+  fraction of the diagonal from the plane of a face around either end
+  (``loop._beyond_reach``).
+
+When no valid collapse remains above the target, the stall rule goes on in phases
+(``Policy.stall_rotations``): the seam rule released (``stall_seams``), the fold-over
+limit widened to each of ``stall_rotations``, the move bound lifted.
 
 The placements are guarded (``cost._near_ring``): the quadric's minimiser must lie
 within the bounding box of the edge's one-ring enlarged by a quarter of the edge's
