@@ -17,10 +17,9 @@ minimised over its own UV, and each wedge's new UV is that minimiser. ``texture_
 A collapse leaves the planes of the faces it replaces by at most a tenth of the model's
 bounding-box diagonal (the engine's move bound, ``Policy.max_move``): on a coarse
 multi-part asset the cheapest collapses left under the seam rule would otherwise drag a
-corner across a part. When no valid
-collapse remains above the target, the run goes on with the seam rule released, then
-with the fold-over limit widened to 120°, 150° and 180° in turn, then without the move
-bound (``stall="widen"``, the engine's stall rule: ``Policy.stall_rotations``);
+corner across a part. When no valid collapse remains above the target, the run goes on
+with the seam rule released, then with the fold-over limit widened to 120°, 150° and
+180° in turn, then without the move bound (``stall="widen"``, the engine's stall rule: ``Policy.stall_rotations``);
 ``stall="stop"`` has neither the bound nor the phases, and stops there and says why.
 """
 

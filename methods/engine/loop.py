@@ -60,6 +60,7 @@ from methods.engine.topology import (
     _check,
     _edge_faces,
     _neighbors,
+    _normal3,
     _third,
 )
 from methods.imaging.counters import STAT_RUN_CYCLES, STAT_TILE_REBUILDS, cycles
@@ -175,9 +176,8 @@ def _beyond_reach(u, v, p, mesh, r):
             if not mesh.falive[f]:
                 continue
             a, b, d = F[f, 0], F[f, 1], F[f, 2]
-            e1x, e1y, e1z = P[b, 0] - P[a, 0], P[b, 1] - P[a, 1], P[b, 2] - P[a, 2]
-            e2x, e2y, e2z = P[d, 0] - P[a, 0], P[d, 1] - P[a, 1], P[d, 2] - P[a, 2]
-            nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+            nx, ny, nz = _normal3(P[a, 0], P[a, 1], P[a, 2], P[b, 0], P[b, 1], P[b, 2],
+                                  P[d, 0], P[d, 1], P[d, 2])
             length = math.sqrt(nx * nx + ny * ny + nz * nz)
             if length == 0.0:
                 continue

@@ -173,10 +173,8 @@ def _result(mesh: Mesh, target_faces: int, policy: Policy, image, prep, arrays, 
     reason = _stop_reason(stopped, int(arrays.falive.sum()), target_faces, rejects)
     stats = _statistics(int(log.count[LOG_COLLAPSES]), evaluations, mismatches, rejects,
                         prep.kinds, verify, time.perf_counter() - start)
-    if _has_stall_rule(policy):
-        stats["stall_collapses"] = stall_collapses
-        if policy.stall_seams or math.isfinite(policy.max_move):
-            stats["stall_phases"] = stall_phases
+    if policy.stall_rotations or policy.stall_seams or math.isfinite(policy.max_move):
+        stats["stall_phases"], stats["stall_collapses"] = stall_phases, stall_collapses
     stats.update(image_stats)
     stats.update(canny_stats)
     if tiles is not None:
@@ -196,11 +194,6 @@ def _check_canny(mesh: Mesh, policy: Policy, borders, image) -> None:
     if policy.canny_weight != 0.0 and policy.canny_units == "base-cost" and image is not None:
         raise ValueError("canny_units='base-cost' measures the base cost without "
                          "rendering; it does not combine with the image term")
-
-
-def _has_stall_rule(policy: Policy) -> bool:
-    return bool(policy.stall_rotations or policy.stall_seams
-                or math.isfinite(policy.max_move))
 
 
 def _stall_phases(policy: Policy, rules: Rules) -> list[tuple[str, dict]]:
