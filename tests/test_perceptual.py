@@ -322,14 +322,30 @@ def _uv_grid(n=6):
     return Mesh(pos, faces.astype(np.int32), uv=pos[:, :2].copy(), name="uv-grid")
 
 
-def _barycentric(q, uv_tris):
-    """(k, t, 3) barycentric coordinates of k UV points in t UV triangles."""
+def _textured_uv_grid(n=6):
+    """The grid of :func:`_uv_grid` with a 16 x 16 texture, its right half (x > 0.5)
+    mapped into one texel, as game assets map a solid-coloured part: those UVs name no
+    point of the surface."""
+    mesh = _uv_grid(n)
+    uv = mesh.uv.copy()
+    right = mesh.positions[:, 0] > 0.5
+    uv[right] = 0.5 + 1e-3 * mesh.positions[right, :2]  # within one texel (1/16)
+    texture = np.full((16, 16, 3), 200, np.uint8)
+    return Mesh(mesh.positions, mesh.faces, uv=uv, texture=texture, name="uv-grid-texel")
+
+
+def _barycentric(q, uv_tris, min_det=0.0):
+    """(k, t, 3) barycentric coordinates of k UV points in t UV triangles; -1 in UV
+    triangles whose doubled area is at most ``min_det``."""
     a, b, c = uv_tris[:, 0], uv_tris[:, 1], uv_tris[:, 2]
     det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
     dx, dy = q[:, None, 0] - a[:, 0], q[:, None, 1] - a[:, 1]
-    l1 = (dx * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * dy) / det
-    l2 = ((b[:, 0] - a[:, 0]) * dy - dx * (b[:, 1] - a[:, 1])) / det
-    return np.stack([1 - l1 - l2, l1, l2], axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        l1 = (dx * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * dy) / det
+        l2 = ((b[:, 0] - a[:, 0]) * dy - dx * (b[:, 1] - a[:, 1])) / det
+    lam = np.stack([1 - l1 - l2, l1, l2], axis=-1)
+    lam[:, np.abs(det) <= min_det] = -1.0
+    return lam
 
 
 def _surface_at(mesh, q):
@@ -348,14 +364,22 @@ def uv_grid():
     return _with_bounds(_uv_grid())
 
 
-def test_deviation_is_the_parametric_distance_at_the_original_corners(uv_grid):
+@pytest.fixture(scope="module")
+def textured_uv_grid():
+    return _with_bounds(_textured_uv_grid())
+
+
+@pytest.mark.parametrize("grid", ["uv_grid", "textured_uv_grid"])
+def test_deviation_is_the_parametric_distance_at_the_original_corners(grid, request):
     """A slow twin of the sampled texture deviation (the module docstring's third
     choice): per node, over the corners of its original triangles, the distance to the
     point of a created triangle with the corner's UV (else to the nearest created
-    triangle), at least its children's."""
+    triangle), at least its children's. On the textured grid a created triangle within
+    one texel of UV contains no UV (twice its area at most 2 / 16²)."""
     from trimesh.triangles import closest_point
 
-    mesh, mt, b = uv_grid
+    mesh, mt, b = request.getfixturevalue(grid)
+    min_det = 2.0 / 16**2 if mesh.texture is not None else 0.0
     fp_start, fp = node_footprints(mt)
     P, T = mt.positions, mt.triangles
     dev = np.zeros(mt.n_nodes)
@@ -365,7 +389,7 @@ def test_deviation_is_the_parametric_distance_at_the_original_corners(uv_grid):
         worst = 0.0
         if len(created) and len(original):
             x = P[T[original]].reshape(-1, 3)
-            lam = _barycentric(mt.uv[T[original]].reshape(-1, 2), mt.uv[T[created]])
+            lam = _barycentric(mt.uv[T[original]].reshape(-1, 2), mt.uv[T[created]], min_det)
             y = np.einsum("ktc,tcd->ktd", lam, P[T[created]])
             par = np.where((lam >= -1e-9).all(axis=-1),
                            np.linalg.norm(y - x[:, None], axis=-1), np.inf).min(axis=1)

@@ -33,8 +33,12 @@ Choices where the paper is vague:
   created triangles with the same texture coordinates (a created triangle whose UV
   triangle contains them), or, when no created triangle does (an untextured mesh, or
   UVs that drifted out of the node's region), the distance to the nearest created
-  triangle. It is made monotone (a node's deviation is at least its children's), so
-  that refining never raises the error of the cut.
+  triangle. A created triangle whose UV triangle covers at most one texel shows one
+  colour, so its UVs name no point of the surface: it contains no corner's UV (game
+  assets map whole solid-coloured parts to a texel or a point, and the UV-to-surface
+  map of such a triangle sent corners to points far across it). It is made monotone
+  (a node's deviation is at least its children's), so that refining never raises the
+  error of the cut.
 - *The other bounds are each node's own*, as §4 computes them, not nested up the MT:
   a child's created triangles are shared among several parents, so a parent's
   sphere can be smaller than a child's and its cones narrower. The view errors are
@@ -143,10 +147,21 @@ def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
     # §2.2: how far the node moves the surface (monotone up the MT)
     child_start, children = mt.child_start.astype(np.int64), mt.children.astype(np.int64)
     dev = _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
-                      mt.uv is not None, fp_start, fp, start, split, own, child_start,
+                      _min_uv_det(mt), fp_start, fp, start, split, own, child_start,
                       children)
     return NodeBounds(center, radius, sax, sang, hax, hang, lrange, dev, child_start,
                       children, textured, time.perf_counter() - start_time)
+
+
+def _min_uv_det(mt: MultiTriangulation) -> float:
+    """:func:`_deviations`'s ``min_det``: twice a texel's UV area when the MT is
+    textured, 0 with UVs only, -1 without UVs."""
+    if mt.uv is None:
+        return -1.0
+    if mt.texture is None:
+        return 0.0
+    height, width = mt.texture.shape[:2]
+    return 2.0 / (height * width)
 
 
 def node_triangles(mt: MultiTriangulation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -382,10 +397,11 @@ def _closest_distance(p, a, b, c):
 
 
 @njit(cache=True)
-def _uv_barycentric(t, a, b, c):
-    """Barycentric coordinates of t in UV triangle abc; (-1, -1, -1) if degenerate."""
+def _uv_barycentric(t, a, b, c, min_det):
+    """Barycentric coordinates of t in UV triangle abc; (-1, -1, -1) if degenerate:
+    twice its UV area at most ``min_det``."""
     det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
-    if det == 0.0:
+    if abs(det) <= min_det:
         return -1.0, -1.0, -1.0
     l1 = ((t[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (t[1] - a[1])) / det
     l2 = ((b[0] - a[0]) * (t[1] - a[1]) - (t[0] - a[0]) * (b[1] - a[1])) / det
@@ -709,13 +725,14 @@ def _luminance_ranges(lum, fp_start, fp):
 
 
 @njit(cache=True)
-def _deviations(tris, P, UV, has_uv, fp_start, fp, start, split, own, child_start, children):
+def _deviations(tris, P, UV, min_det, fp_start, fp, start, split, own, child_start, children):
     """Sampled texture deviation of each node (§2.2; the module docstring's third choice).
 
     For every corner of the node's original triangles: the smallest distance to a point
     of a created triangle whose UV triangle contains the corner's UV (the parametric
     distance), or, when none does or there are no UVs, the distance to the nearest
-    created triangle; the node's deviation is the largest of these and of its
+    created triangle. A created triangle whose UV triangle is degenerate (twice its
+    area at most ``min_det``) contains no UV; the node's deviation is the largest of these and of its
     children's deviations (children come first: they have smaller indices). A node that
     creates nothing has only its children's.
 
@@ -723,8 +740,11 @@ def _deviations(tris, P, UV, has_uv, fp_start, fp, start, split, own, child_star
     ----------
     tris, P, fp_start, fp, start, split, own : see the block comment above
     UV : ndarray (nv, 2) float64
-        MT vertex texture coordinates (ignored unless ``has_uv``).
-    has_uv : bool
+        MT vertex texture coordinates (ignored when ``min_det`` < 0).
+    min_det : float
+        Twice the UV area at or below which a UV triangle is degenerate: twice a texel's
+        area on a textured mesh (a triangle within one texel shows one colour, so its
+        UVs name no point of the surface), 0 with UVs and no texture, -1 without UVs.
     child_start, children : ndarray (c + 1,), (kc,) int64
         CSR: the nodes creating node i's removed triangles.
 
@@ -750,9 +770,10 @@ def _deviations(tris, P, UV, has_uv, fp_start, fp, start, split, own, child_star
                         b = P[tris[t, 1]]
                         cc = P[tris[t, 2]]
                         best_geo = min(best_geo, _closest_distance(x, a, b, cc))
-                        if has_uv:
+                        if min_det >= 0.0:
                             l0, l1, l2 = _uv_barycentric(UV[tris[o, e]], UV[tris[t, 0]],
-                                                         UV[tris[t, 1]], UV[tris[t, 2]])
+                                                         UV[tris[t, 1]], UV[tris[t, 2]],
+                                                         min_det)
                             if l0 >= -1e-9 and l1 >= -1e-9 and l2 >= -1e-9:
                                 y = l0 * a + l1 * b + l2 * cc
                                 dd = x - y
