@@ -167,6 +167,18 @@ def test_a_mesh_without_duplicates_has_no_twin_or_fake_collapses():
     assert result.stats["presimplified_faces"] == 320  # below 20 x the target: untouched
 
 
+def test_the_move_bound_is_a_multiple_of_the_target_face_size():
+    """move_bound x sqrt(surface area / target faces), as a fraction of the diagonal:
+    a unit square in two triangles (area 1, diagonal sqrt 2) at a target of 4 faces has
+    faces of size 1/2."""
+    square = Mesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float),
+                  np.array([[0, 1, 2], [0, 2, 3]]))
+    assert EntropyTwin().max_move(square, 4) == pytest.approx(0.7 * 0.5 / math.sqrt(2))
+    twice = EntropyTwin(move_bound=1.4)
+    assert twice.max_move(square, 1) == pytest.approx(1.4 / math.sqrt(2))
+    assert twice.policy(False, 0.25).max_move == 0.25
+
+
 def test_large_meshes_are_presimplified_to_twenty_times_the_target():
     mesh = blob(3)  # 1,280 faces
     result = EntropyTwin(resolution=RES).simplify(mesh, 40)
