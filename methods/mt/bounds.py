@@ -731,10 +731,10 @@ def _deviations(tris, P, UV, min_det, fp_start, fp, start, split, own, child_sta
     For every corner of the node's original triangles: the smallest distance to a point
     of a created triangle whose UV triangle contains the corner's UV (the parametric
     distance), or, when none does or there are no UVs, the distance to the nearest
-    created triangle. A created triangle whose UV triangle is degenerate (twice its
-    area at most ``min_det``) contains no UV; the node's deviation is the largest of these and of its
-    children's deviations (children come first: they have smaller indices). A node that
-    creates nothing has only its children's.
+    created triangle (a created triangle whose UV triangle is degenerate, twice its
+    area at most ``min_det``, contains no UV); the node's deviation is the largest of
+    these and of its children's deviations (children come first: they have smaller
+    indices). A node that creates nothing has only its children's.
 
     Parameters
     ----------
