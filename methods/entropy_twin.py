@@ -320,9 +320,12 @@ class EntropyTwin(Method):
 
     def max_move(self, mesh: Mesh, target_faces: int) -> float:
         """``move_bound`` times the target's face size, sqrt(surface area / target
-        faces), as a fraction of ``mesh``'s bounding-box diagonal."""
-        size = math.sqrt(face_areas(mesh.positions, mesh.faces).sum() / max(1, target_faces))
-        return self.params.move_bound * size / mesh.diagonal
+        faces), as a fraction of ``mesh``'s bounding-box diagonal; no bound (inf) for a
+        mesh without area, which has no face size."""
+        area = float(face_areas(mesh.positions, mesh.faces).sum())
+        if not (area > 0 and mesh.diagonal > 0):
+            return math.inf
+        return self.params.move_bound * math.sqrt(area / max(1, target_faces)) / mesh.diagonal
 
     @at_workable_scale  # cameras and images at unit scale; the result scaled back
     def simplify(self, mesh: Mesh, target_faces: int, ctx=None) -> SimplifyResult:
@@ -366,7 +369,7 @@ class EntropyTwin(Method):
             "cost_evaluations": s["cost_evaluations"],
             "entropy_evaluations": s["image_evaluations"],
             "rejections": s["rejections"], "max_move": policy.max_move,
-            "stall_phases": s.get("stall_phases", []),
+            "stall_phases": s.get("stall_phases", []),  # none without a bound
             "stall_collapses": s.get("stall_collapses", []),
             "mean_view_entropy": float(np.mean(s["view_entropy"])),
             "engine_seconds": s["engine_seconds"],

@@ -179,6 +179,16 @@ def test_the_move_bound_is_a_multiple_of_the_target_face_size():
     assert twice.policy(False, 0.25).max_move == 0.25
 
 
+def test_a_mesh_without_area_has_no_move_bound():
+    """Its faces have no size to bound a move by: it simplifies as without the bound
+    (as version 3 did: stopped at 2 faces), not with an error about max_move."""
+    line = Mesh(np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], float),
+                np.array([[0, 1, 2], [1, 2, 3]]))
+    assert EntropyTwin().max_move(line, 1) == math.inf
+    result = EntropyTwin(resolution=RES).simplify(line, 1)
+    assert result.mesh.n_faces == 2 and "no valid collapse" in result.stop_reason
+
+
 def test_large_meshes_are_presimplified_to_twenty_times_the_target():
     mesh = blob(3)  # 1,280 faces
     result = EntropyTwin(resolution=RES).simplify(mesh, 40)
