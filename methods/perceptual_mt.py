@@ -139,7 +139,7 @@ class PerceptualMT(Method):
     # 7: every phase of the stall rule runs
     # 8: a created triangle within one texel of UV names no point in the texture
     #    deviation (solid-coloured parts of atlases inflated it on game assets)
-    version = "8"
+    version = "9"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "

@@ -28,17 +28,24 @@ Choices where the paper is vague:
   its stored range; a partial cell recurses; a partial texel at the bottom counts),
   so every texel the triangle touches is covered. Luminance is Rec. 601 Y of the
   texture's sRGB values on 0..1, the protocol's luminance, without display gamma.
-- *Texture deviation* is sampled, not bounded as Cohen et al. 1998 do: for every
-  corner of the node's original triangles, the distance to the point of the node's
-  created triangles with the same texture coordinates (a created triangle whose UV
-  triangle contains them), or, when no created triangle does (an untextured mesh, or
-  UVs that drifted out of the node's region), the distance to the nearest created
-  triangle. A created triangle whose UV triangle covers at most one texel shows one
-  colour, so its UVs name no point of the surface: it contains no corner's UV (game
-  assets map whole solid-coloured parts to a texel or a point, and the UV-to-surface
-  map of such a triangle sent corners to points far across it). It is made monotone
-  (a node's deviation is at least its children's), so that refining never raises the
-  error of the cut.
+- *Texture deviation* is sampled, not bounded as Cohen et al. 1998 do, and has two
+  parts. The parametric part, both ways between the node's created and original
+  triangles: at the corners of its original triangles and at the corners, edge
+  midpoints and centroids of its created ones, the distance to the point of the other
+  set with the same texture coordinates. A point whose coordinates the other set does
+  not contain lies in another node's part of the chart (a low-poly asset's original
+  triangles are large, and a footprint holds the far corners of triangles whose
+  centroid it holds) and is not sampled. A triangle whose UV triangle covers at most
+  one texel shows one colour, so its UVs name no point of the surface: it contains no
+  coordinates (game assets map whole solid-coloured parts to a texel or a point). The geometric part, which is all an
+  untextured mesh has: the original vertices are handed down the MT as the original
+  triangles are, each to the created triangle nearest to the vertex itself (at first
+  the lowest-numbered original triangle it is a corner of), and a node's part is the
+  largest distance from a vertex it hands on to its new triangle. A vertex always
+  belongs to the triangle of the cut nearest to it when it was handed, so the corners
+  of large original triangles do not count against a node that merely holds their
+  centroid. The deviation is the larger part, made monotone (a node's deviation is at
+  least its children's), so that refining never raises the error of the cut.
 - *The other bounds are each node's own*, as §4 computes them, not nested up the MT:
   a child's created triangles are shared among several parents, so a parent's
   sphere can be smaller than a child's and its cones narrower. The view errors are
@@ -57,7 +64,7 @@ from numba import njit
 from methods.mt.dag import MultiTriangulation
 from metrics.shading import LUMA_B, LUMA_G, LUMA_R
 
-__all__ = ["NodeBounds", "preprocess", "node_triangles", "node_footprints",
+__all__ = ["NodeBounds", "preprocess", "node_triangles", "node_footprints", "subtree_max",
            "texel_luminance_ranges", "luminance_pyramid"]
 
 
@@ -146,9 +153,11 @@ def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
     lrange = _luminance_ranges(lum, fp_start, fp)
     # §2.2: how far the node moves the surface (monotone up the MT)
     child_start, children = mt.child_start.astype(np.int64), mt.children.astype(np.int64)
-    dev = _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
-                      _min_uv_det(mt), fp_start, fp, start, split, own, child_start,
-                      children)
+    dev = np.maximum(
+        _vertex_moves(tris, P, m, start, split, own),
+        _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
+                    _min_uv_det(mt), fp_start, fp, start, split, own))
+    subtree_max(dev, child_start, children)
     return NodeBounds(center, radius, sax, sang, hax, hang, lrange, dev, child_start,
                       children, textured, time.perf_counter() - start_time)
 
@@ -486,15 +495,13 @@ def _node_triangles(r_start, r_list, c_start, c_list):
     return start, split, own
 
 
-@njit(cache=True)
 def _footprints(tris, P, m, start, split, own):
     """Each node's original triangles (the module docstring's first choice).
 
     Every original triangle belongs to one triangle of the current cut, the one it was
     last handed to (at first itself). Node i collects the originals of the triangles it
     removes and hands each to its created triangle nearest to the original's centroid
-    (Ericson's point-triangle distance; the first of equals wins). A node that creates
-    nothing keeps its originals but hands them on to no one.
+    (:func:`_hand_down`).
 
     Parameters
     ----------
@@ -509,44 +516,98 @@ def _footprints(tris, P, m, start, split, own):
     fp_start : ndarray (c + 1,) int64; fp : ndarray (kf,) int64
         CSR over nodes of original triangle indices, in collection order.
     """
+    original = np.arange(m, dtype=np.int64)
+    centroids = (P[tris[:m, 0]] + P[tris[:m, 1]] + P[tris[:m, 2]]) / 3.0
+    fp_start, fp, _ = _hand_down(centroids, original, tris, P, start, split, own)
+    return fp_start, fp
+
+
+def _vertex_moves(tris, P, m, start, split, own):
+    """How far each node moves the original vertices it holds (the module docstring's
+    texture deviation, its geometric part).
+
+    Every vertex of the original triangles belongs to one triangle of the current cut,
+    at first the lowest-numbered original triangle it is a corner of; node i collects
+    the vertices of the triangles it removes and hands each to its created triangle
+    nearest to the vertex (:func:`_hand_down`).
+
+    Returns
+    -------
+    ndarray (c,) float64
+        The largest distance from a vertex node i collects to the created triangle it
+        hands it to (0 for a node that collects none or creates nothing).
+    """
+    corners = tris[:m].ravel()
+    vertices, first = np.unique(corners, return_index=True)
+    _, _, moved = _hand_down(P[vertices], (first // 3).astype(np.int64), tris, P, start,
+                             split, own)
+    return moved
+
+
+@njit(cache=True)
+def _hand_down(points, holder, tris, P, start, split, own):
+    """Hand items down the MT: each item belongs to one triangle of the current cut.
+
+    Item k (a point ``points[k]``) is held at first by MT triangle ``holder[k]``. Node
+    i collects the items of the triangles it removes, in the order of its removed
+    triangles (each triangle's items newest first), and hands each to its created
+    triangle nearest to the item's point (Ericson's point-triangle distance; the first
+    of equals wins). A node that creates nothing keeps its items but hands them on to
+    no one.
+
+    Parameters
+    ----------
+    points : ndarray (n, 3) float64; holder : ndarray (n,) int64
+    tris, P, start, split, own : see the block comment above
+
+    Returns
+    -------
+    item_start : ndarray (c + 1,) int64; items : ndarray (k,) int64
+        CSR over nodes of the items each node collects.
+    moved : ndarray (c,) float64
+        The largest distance from an item node i collects to the created triangle it
+        hands it to (0 if none).
+    """
     c = start.shape[0] - 1
-    nt = tris.shape[0]
-    head = np.full(nt, -1, np.int64)  # first original held by each MT triangle
-    nxt = np.full(m, -1, np.int64)  # next original held by the same triangle
-    for o in range(m):
-        head[o] = o
-    fp_start = np.zeros(c + 1, np.int64)
-    fp = np.empty(max(16, 4 * m), np.int64)
+    head = np.full(tris.shape[0], -1, np.int64)  # newest item held by each MT triangle
+    nxt = np.full(points.shape[0], -1, np.int64)  # next item held by the same triangle
+    for k in range(points.shape[0]):
+        nxt[k] = head[holder[k]]
+        head[holder[k]] = k
+    item_start = np.zeros(c + 1, np.int64)
+    items = np.empty(max(16, 4 * points.shape[0]), np.int64)
+    moved = np.zeros(c)
     n = 0
     for i in range(c):
         first = n
         for j in range(start[i], split[i]):
             t = own[j]
-            o = head[t]
-            while o != -1:
-                if n == fp.shape[0]:
+            k = head[t]
+            while k != -1:
+                if n == items.shape[0]:
                     grown = np.empty(2 * n, np.int64)
-                    grown[:n] = fp
-                    fp = grown
-                fp[n] = o
+                    grown[:n] = items
+                    items = grown
+                items[n] = k
                 n += 1
-                o = nxt[o]
+                k = nxt[k]
             head[t] = -1
-        fp_start[i + 1] = n
+        item_start[i + 1] = n
         c0, c1 = split[i], start[i + 1]
         if c1 > c0:
             for q in range(first, n):
-                o = fp[q]
-                g = (P[tris[o, 0]] + P[tris[o, 1]] + P[tris[o, 2]]) / 3.0
-                best_t = _nearest(g, own[c0:c1], tris, P)
-                nxt[o] = head[best_t]
-                head[best_t] = o
-    return fp_start, fp[:n].copy()
+                k = items[q]
+                best_t, best = _nearest(points[k], own[c0:c1], tris, P)
+                moved[i] = max(moved[i], best)
+                nxt[k] = head[best_t]
+                head[best_t] = k
+    return item_start, items[:n].copy(), moved
 
 
 @njit(cache=True)
 def _nearest(g, candidates, tris, P):
-    """The triangle of ``candidates`` nearest to the point ``g`` (the first of equals)."""
+    """The triangle of ``candidates`` nearest to the point ``g`` (the first of equals)
+    and its distance."""
     best = 1e300
     best_t = -1
     for t in candidates:
@@ -554,7 +615,7 @@ def _nearest(g, candidates, tris, P):
         if d < best:
             best = d
             best_t = t
-    return best_t
+    return best_t, best
 
 
 @njit(cache=True)
@@ -724,17 +785,26 @@ def _luminance_ranges(lum, fp_start, fp):
     return lrange
 
 
-@njit(cache=True)
-def _deviations(tris, P, UV, min_det, fp_start, fp, start, split, own, child_start, children):
-    """Sampled texture deviation of each node (§2.2; the module docstring's third choice).
+# Where a created triangle is sampled for the parametric distance: its corners, edge
+# midpoints and centroid (barycentric weights).
+_CREATED_SAMPLES = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0],
+                             [0.5, 0.5, 0.0], [0.0, 0.5, 0.5], [0.5, 0.0, 0.5],
+                             [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0]])
 
-    For every corner of the node's original triangles: the smallest distance to a point
-    of a created triangle whose UV triangle contains the corner's UV (the parametric
-    distance), or, when none does or there are no UVs, the distance to the nearest
-    created triangle (a created triangle whose UV triangle is degenerate, twice its
-    area at most ``min_det``, contains no UV); the node's deviation is the largest of
-    these and of its children's deviations (children come first: they have smaller
-    indices). A node that creates nothing has only its children's.
+
+@njit(cache=True)
+def _deviations(tris, P, UV, min_det, fp_start, fp, start, split, own):
+    """Sampled parametric distance of each node's own (§2.2; the module docstring's
+    texture deviation, its parametric part).
+
+    Both ways between the node's created triangles and its original triangles: at
+    every corner of an original triangle, and at the corners, edge midpoints and
+    centroid of every created triangle, the distance to the nearest point of the other
+    set with the same texture coordinates; a point whose coordinates the other set's UV
+    triangles do not contain lies in another node's part of the chart and is not
+    sampled. A UV triangle that is degenerate (twice its area at most ``min_det``)
+    contains no coordinates. The node's value is the largest sampled distance; 0 for a
+    node that creates nothing, or a mesh without UVs.
 
     Parameters
     ----------
@@ -745,8 +815,6 @@ def _deviations(tris, P, UV, min_det, fp_start, fp, start, split, own, child_sta
         Twice the UV area at or below which a UV triangle is degenerate: twice a texel's
         area on a textured mesh (a triangle within one texel shows one colour, so its
         UVs name no point of the surface), 0 with UVs and no texture, -1 without UVs.
-    child_start, children : ndarray (c + 1,), (kc,) int64
-        CSR: the nodes creating node i's removed triangles.
 
     Returns
     -------
@@ -754,32 +822,54 @@ def _deviations(tris, P, UV, min_det, fp_start, fp, start, split, own, child_sta
     """
     c = start.shape[0] - 1
     dev = np.zeros(c)
+    if min_det < 0.0:
+        return dev
+    w = _CREATED_SAMPLES
     for i in range(c):
-        d_node = 0.0
-        c0, c1 = split[i], start[i + 1]
-        for q in range(fp_start[i], fp_start[i + 1]):
-            o = fp[q]
-            if c1 > c0:
-                for e in range(3):
-                    x = P[tris[o, e]]
-                    best_geo = 1e300
-                    best_par = 1e300
-                    for j in range(c0, c1):
-                        t = own[j]
-                        a = P[tris[t, 0]]
-                        b = P[tris[t, 1]]
-                        cc = P[tris[t, 2]]
-                        best_geo = min(best_geo, _closest_distance(x, a, b, cc))
-                        if min_det >= 0.0:
-                            l0, l1, l2 = _uv_barycentric(UV[tris[o, e]], UV[tris[t, 0]],
-                                                         UV[tris[t, 1]], UV[tris[t, 2]],
-                                                         min_det)
-                            if l0 >= -1e-9 and l1 >= -1e-9 and l2 >= -1e-9:
-                                y = l0 * a + l1 * b + l2 * cc
-                                dd = x - y
-                                best_par = min(best_par, math.sqrt(dd @ dd))
-                    d_node = max(d_node, best_par if best_par < 1e300 else best_geo)
-        for j in range(child_start[i], child_start[i + 1]):
-            d_node = max(d_node, dev[children[j]])
-        dev[i] = d_node
+        created = own[split[i]:start[i + 1]]
+        originals = fp[fp_start[i]:fp_start[i + 1]]
+        for o in originals:
+            for e in range(3):
+                v = tris[o, e]
+                d = _parametric_distance(UV[v], P[v], created, tris, P, UV, min_det)
+                dev[i] = max(dev[i], d)
+        for t in created:
+            a, b, cc = tris[t, 0], tris[t, 1], tris[t, 2]
+            for k in range(w.shape[0]):
+                uv = w[k, 0] * UV[a] + w[k, 1] * UV[b] + w[k, 2] * UV[cc]
+                x = w[k, 0] * P[a] + w[k, 1] * P[b] + w[k, 2] * P[cc]
+                d = _parametric_distance(uv, x, originals, tris, P, UV, min_det)
+                dev[i] = max(dev[i], d)
     return dev
+
+
+@njit(cache=True)
+def _parametric_distance(uv, x, candidates, tris, P, UV, min_det):
+    """The distance from ``x`` to the nearest point with texture coordinates ``uv`` on
+    the triangles ``candidates`` whose UV triangles contain them (see
+    :func:`_uv_barycentric`); 0 if none does."""
+    best = math.inf
+    for t in candidates:
+        l0, l1, l2 = _uv_barycentric(uv, UV[tris[t, 0]], UV[tris[t, 1]], UV[tris[t, 2]],
+                                     min_det)
+        if l0 >= -1e-9 and l1 >= -1e-9 and l2 >= -1e-9:
+            y = l0 * P[tris[t, 0]] + l1 * P[tris[t, 1]] + l2 * P[tris[t, 2]]
+            dd = x - y
+            best = min(best, math.sqrt(dd @ dd))
+    return best if best < math.inf else 0.0
+
+
+@njit(cache=True)
+def subtree_max(values, child_start, children):
+    """Raise each node's value to its children's, in place, children first (a child's
+    index is smaller): afterwards every node's value is the maximum over its subtree.
+
+    Parameters
+    ----------
+    values : ndarray (c,) float64
+    child_start, children : ndarray (c + 1,), (kc,) int64
+        CSR: the nodes creating node i's removed triangles.
+    """
+    for i in range(values.shape[0]):
+        for j in range(child_start[i], child_start[i + 1]):
+            values[i] = max(values[i], values[children[j]])

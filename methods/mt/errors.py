@@ -36,6 +36,7 @@ import numpy as np
 from numba import njit
 
 from methods.mt.bounds import NodeBounds
+from methods.mt.bounds import subtree_max as _subtree_max
 from methods.mt.csf import ContrastSensitivity, visible_frequency_kernel
 from metrics.shading import DEFAULT_CONSTANTS
 
@@ -174,15 +175,6 @@ def _contrast(nodes, measure, i, dx, dy, dz, dist, alpha):
     return 0.0 if lmax + lmin <= 0.0 else (lmax - lmin) / (lmax + lmin)
 
 
-@njit(cache=True)
-def _children_max(out, child_start, children):
-    """Raise each node's error to its children's, in place, children first (a child's
-    index is smaller): afterwards every node's error is the maximum over its subtree."""
-    for i in range(out.shape[0]):
-        for j in range(child_start[i], child_start[i + 1]):
-            out[i] = max(out[i], out[children[j]])
-
-
 def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perceptual",
                 lighting: str = "gouraud", specular: bool = True, ppd: float = 32.0,
                 csf: ContrastSensitivity | None = None, silhouette_factor: float = 10.0,
@@ -238,7 +230,7 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
     out, status = np.empty(len(b.radius)), np.empty(len(b.radius), np.int8)
     _node_errors(nodes, view, measure, out, status)
     if subtree_max:
-        _children_max(out, bounds.child_start, bounds.children)
+        _subtree_max(out, bounds.child_start, bounds.children)
     return out, status
 
 
