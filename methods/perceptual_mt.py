@@ -139,7 +139,10 @@ class PerceptualMT(Method):
     # 7: every phase of the stall rule runs
     # 8: a created triangle within one texel of UV names no point in the texture
     #    deviation (solid-coloured parts of atlases inflated it on game assets)
-    version = "9"
+    # 9: the deviation's geometric part from the original vertices handed down the MT
+    #    (the far corners of large original triangles inflated it)
+    # 10: an exact node (deviation 0) has no silhouette or texture contrast
+    version = "10"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "

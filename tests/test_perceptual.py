@@ -473,6 +473,40 @@ def test_invisible_nodes_have_zero_error(patches):
     np.testing.assert_array_equal(err, b.deviation)
 
 
+def _two_nodes(deviation, luminance):
+    """Bounds of two nodes at the origin seen edge-on from CAMERA's side (+z): flat
+    patches whose normal is +x, so both lie on the silhouette."""
+    from methods.mt.bounds import NodeBounds
+
+    two = np.ones(2)
+    return NodeBounds(center=np.zeros((2, 3)), radius=0.5 * two,
+                      silhouette_axis=np.tile([1.0, 0.0, 0.0], (2, 1)),
+                      silhouette_angle=0.1 * two,
+                      shading_axis=np.tile([1.0, 0.0, 0.0], (2, 1)),
+                      shading_angle=0.1 * two, luminance=np.asarray(luminance, float),
+                      deviation=np.asarray(deviation, float),
+                      child_start=np.zeros(3, np.int64), children=np.zeros(0, np.int64),
+                      textured=True)
+
+
+def test_an_exact_node_shows_only_under_gouraud_lighting():
+    """A node whose deviation is 0 moves no point: no texel and no silhouette moves.
+    Unlit or flat, its perceptual error is 0 where the same node with a deviation has
+    the silhouette's maximal contrast; under Gouraud shading it has the lighting's
+    contrast over its brightest texel alone, as a node of that one luminance."""
+    cam = Camera(eye=[0.0, 0.0, 5.0], target=[0.0, 0.0, 0.0], up=[0, 1, 0], fov_y_deg=60.0,
+                 near=0.1, far=100.0)
+    b = _two_nodes([0.0, 0.01], [[0.1, 0.9], [0.1, 0.9]])
+    for lighting in ("none", "flat"):
+        err, status = node_errors(b, cam, 256, lighting=lighting)
+        assert list(status) == [2, 2]
+        assert err[0] == 0.0 and err[1] > 0.0
+    err, _ = node_errors(b, cam, 256, lighting="gouraud")
+    one_texel, _ = node_errors(_two_nodes([0.01, 0.01], [[0.9, 0.9], [0.9, 0.9]]), cam, 256,
+                               lighting="gouraud", silhouette_contrast=False)
+    assert 0.0 < err[0] == one_texel[0] < err[1]
+
+
 def test_silhouette_factor_multiplies_silhouette_nodes_only():
     mesh = make_torus(48, 24, texture_size=64)  # fine enough for front-facing nodes
     mt = build_mt(mesh)
