@@ -489,6 +489,18 @@ def _two_nodes(deviation, luminance):
                       textured=True)
 
 
+def test_deviation_without_uvs_is_how_far_the_vertices_move(patches):
+    """Without UVs the deviation is its geometric part alone: how far each node moves
+    the original vertices it holds (the slow twin), at least its children's."""
+    _, mt, b = patches
+    assert mt.uv is None
+    dev = _vertex_moves_twin(mt)
+    for i in range(mt.n_nodes):
+        dev[i] = max([dev[i], *dev[mt.node_children(i)]])
+    np.testing.assert_allclose(b.deviation, dev, rtol=1e-9, atol=1e-15)
+    assert (b.deviation > 0).any()
+
+
 def test_an_exact_node_shows_only_under_gouraud_lighting():
     """A node whose deviation is 0 moves no point: no texel and no silhouette moves.
     Unlit or flat, its perceptual error is 0 where the same node with a deviation has

@@ -37,16 +37,18 @@ Choices where the paper is vague:
   triangles are large, and a footprint holds the far corners of triangles whose
   centroid it holds) and is not sampled. A triangle whose UV triangle covers at most
   one texel shows one colour, so its UVs name no point of the surface: it contains no
-  coordinates (game assets map whole solid-coloured parts to a texel or a point). The
-  geometric part, which is all an untextured mesh has: the original vertices are
-  handed down the MT as the original triangles are, each to the created triangle
-  nearest to the vertex itself (at first the lowest-numbered original triangle it is
-  a corner of), and a node's part is the largest distance from a vertex it hands on
-  to its new triangle. A vertex always belongs to the triangle of the cut nearest to
-  it when it was handed, so the corners of large original triangles do not count
-  against a node that merely holds their centroid. The deviation is the larger part,
-  made monotone (a node's deviation is at least its children's), so that refining
-  never raises the error of the cut.
+  coordinates (game assets map whole solid-coloured parts to a texel or a point).
+  Where UV islands overlap or mirror each other, a point may find its coordinates on
+  another island than its own (the nearest point with them counts). The geometric
+  part, which is all an untextured mesh has: the original vertices are handed down
+  the MT as the original triangles are, each to the created triangle nearest to the
+  vertex itself (at first the lowest-numbered original triangle it is a corner of),
+  and a node's part is the largest distance from a vertex it hands on to its new
+  triangle. A vertex always belongs to the triangle of the cut nearest to it when it
+  was handed, so the corners of large original triangles do not count against a node
+  that merely holds their centroid. The deviation is the larger part, made monotone (a
+  node's deviation is at least its children's), so that refining never raises the
+  error of the cut.
 - *The other bounds are each node's own*, as §4 computes them, not nested up the MT:
   a child's created triangles are shared among several parents, so a parent's
   sphere can be smaller than a child's and its cones narrower. The view errors are

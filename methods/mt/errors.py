@@ -230,7 +230,12 @@ def node_errors(bounds: NodeBounds, camera, resolution: int, error: str = "perce
     the lighting's alone. The paper has no such case (its meshes are scans): with
     maximal silhouette contrast and the sphere as feature size, exact nodes of large
     flat parts got the largest errors of a view and took the budget, and the vehicle
-    analogue's images were the same at 108 and 1,000 faces.
+    analogue's images were the same at 108 and 1,000 faces. Exactness is read from the
+    texture deviation, which measures the original's vertices against the node's
+    triangles, and the node's triangles against the original only through UVs: on a
+    part without usable UVs (one texel) a collapse that adds surface while every
+    original vertex stays on it (a concave corner of an open flat part filled in) would
+    count as exact.
 
     Returns
     -------
