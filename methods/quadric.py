@@ -20,7 +20,8 @@ multi-part asset the cheapest collapses left under the seam rule would otherwise
 corner across a part. When no valid collapse remains above the target, the run goes on
 with the seam rule released, then with the fold-over limit widened to 120°, 150° and
 180° in turn, then without the move bound (``stall="widen"``, the engine's stall rule:
-``Policy.stall_rotations``); ``stall="stop"`` has neither the bound nor the phases, and stops there and says why.
+``Policy.stall_rotations``); ``stall="stop"`` has neither the bound nor the phases,
+and stops there and says why.
 """
 
 from __future__ import annotations
