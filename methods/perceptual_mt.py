@@ -142,7 +142,7 @@ class PerceptualMT(Method):
     # 9: the deviation's geometric part from the original vertices handed down the MT
     #    (the far corners of large original triangles inflated it)
     # 10: an exact node (deviation 0) has no silhouette or texture contrast
-    version = "10"
+    version = "11"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")
     reference = ("Williams, Luebke, Cohen, Kelley & Schubert, Perceptually Guided "

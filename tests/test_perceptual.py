@@ -4,6 +4,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from bench.catalog.torus import make_torus
 from bench.core.errors import ParamError
@@ -19,7 +21,7 @@ from methods.mt.bounds import (
 from methods.mt.csf import PEAK_FREQUENCY, ContrastSensitivity, csf
 from methods.mt.dag import build_mt
 from methods.mt.errors import node_errors
-from methods.mt.refine import Refiner, refine
+from methods.mt.refine import Refiner, refine, refine_where_farthest
 from methods.perceptual_mt import PerceptualMT
 from metrics.views import Camera, protocol_cameras
 
@@ -234,7 +236,7 @@ def _hand_down_twin(mt, points, holder):
     for k, t in enumerate(holder):
         held.setdefault(int(t), []).append(k)
     P, T = mt.positions, mt.triangles
-    out, moved = [], np.zeros(mt.n_nodes)
+    out, moved, by_triangle = [], np.zeros(mt.n_nodes), np.zeros(mt.n_triangles)
     for i in range(mt.n_nodes):
         mine = [k for t in mt.node_removed(i) for k in held.pop(int(t), [])]
         out.append(mine)
@@ -245,9 +247,10 @@ def _hand_down_twin(mt, points, holder):
         tri = np.tile(P[T[created]], (len(mine), 1, 1))
         d = np.linalg.norm(closest_point(tri, g) - g, axis=1).reshape(len(mine), -1)
         moved[i] = d.min(axis=1).max()
-        for k, t in zip(mine, created[d.argmin(axis=1)]):
+        for k, t, dk in zip(mine, created[d.argmin(axis=1)], d.min(axis=1)):
             held.setdefault(int(t), []).append(k)
-    return out, moved
+            by_triangle[t] = max(by_triangle[t], dk)
+    return out, moved, by_triangle
 
 
 def _footprints_twin(mt):
@@ -263,7 +266,7 @@ def _vertex_moves_twin(mt):
     T = mt.triangles[:mt.n_original]
     vertices = sorted(set(T.ravel().tolist()))
     first = [int(np.argmax((T == v).any(axis=1))) for v in vertices]
-    return _hand_down_twin(mt, mt.positions[vertices], first)[1]
+    return _hand_down_twin(mt, mt.positions[vertices], first)[1:]
 
 
 def _cone_twin(vectors):
@@ -404,10 +407,11 @@ def test_deviation_matches_a_slow_twin(grid, request):
     min_det = 2.0 / 16**2 if mesh.texture is not None else 0.0
     fp_start, fp = node_footprints(mt)
     P, T = mt.positions, mt.triangles
-    dev = _vertex_moves_twin(mt)
+    dev, by_triangle = _vertex_moves_twin(mt)
     for i in range(mt.n_nodes):
         created = mt.node_created(i)
         original = fp[fp_start[i]:fp_start[i + 1]]
+        own = 0.0
         if len(created) and len(original):
             for src, dst in ((original, created), (created, original)):
                 w = np.eye(3) if src is original else _CREATED_WEIGHTS
@@ -417,10 +421,16 @@ def test_deviation_matches_a_slow_twin(grid, request):
                 y = np.einsum("ktc,tcd->ktd", lam, P[T[dst]])
                 par = np.where((lam >= -1e-9).all(axis=-1),
                                np.linalg.norm(y - x[:, None], axis=-1), np.inf).min(axis=1)
-                dev[i] = max(dev[i], par[np.isfinite(par)].max(initial=0.0))
-        dev[i] = max([dev[i], *dev[mt.node_children(i)]])
+                own = max(own, par[np.isfinite(par)].max(initial=0.0))
+        # a created triangle's own deviation: the vertices handed to it, its node's
+        # parametric part
+        by_triangle[created] = np.maximum(by_triangle[created], own)
+        dev[i] = max([dev[i], own, *dev[mt.node_children(i)]])
     np.testing.assert_allclose(b.deviation, dev, rtol=1e-9, atol=1e-15)
     assert (b.deviation > 0).mean() > 0.9
+    np.testing.assert_allclose(b.triangle_deviation, by_triangle, rtol=1e-9, atol=1e-15)
+    assert np.all(b.triangle_deviation[:mt.n_original] == 0)
+    assert (b.triangle_deviation[mt.n_original:] > 0).mean() > 0.5
 
 
 @pytest.mark.xfail(strict=True, raises=AssertionError,
@@ -491,14 +501,17 @@ def _two_nodes(deviation, luminance):
 
 def test_deviation_without_uvs_is_how_far_the_vertices_move(patches):
     """Without UVs the deviation is its geometric part alone: how far each node moves
-    the original vertices it holds (the slow twin), at least its children's."""
+    the original vertices it holds (the slow twin), at least its children's; a
+    triangle's, how far the vertices handed to it moved."""
     _, mt, b = patches
     assert mt.uv is None
-    dev = _vertex_moves_twin(mt)
+    dev, by_triangle = _vertex_moves_twin(mt)
     for i in range(mt.n_nodes):
         dev[i] = max([dev[i], *dev[mt.node_children(i)]])
     np.testing.assert_allclose(b.deviation, dev, rtol=1e-9, atol=1e-15)
     assert (b.deviation > 0).any()
+    np.testing.assert_allclose(b.triangle_deviation, by_triangle, rtol=1e-9, atol=1e-15)
+    assert (b.triangle_deviation > 0).any()
 
 
 def test_an_exact_node_shows_only_under_gouraud_lighting():
@@ -573,6 +586,77 @@ def test_refine_is_greedy_on_view_independent_errors():
     assert cut.n_faces == mt.coarsest_faces + 2
 
 
+def _farthest_twin(mt, dev, budget):
+    """:func:`refine_where_farthest` the slow way: scan the whole cut each step for the
+    triangle of largest deviation (lowest index on ties) not given up yet, raise its
+    creator with its applied ancestors, and give the triangle up if that breaks the
+    budget (undone). No memo of the raises that did not fit."""
+    cut = mt.cut("coarsest")
+    given_up = set()
+    while True:
+        left = [t for t in cut.triangles() if mt.creator[t] >= 0 and t not in given_up]
+        if not left:
+            return cut
+        t = min(left, key=lambda u: (-dev[u], u))
+        order = cut.raise_node(int(mt.creator[t]))
+        if cut.n_faces > budget:
+            for i in order[::-1]:
+                cut.lower_node(int(i))
+            given_up.add(t)
+
+
+@pytest.fixture(scope="module")
+def torus_mt():
+    mesh = make_torus(16, 8, texture_size=64)
+    mt = build_mt(mesh)
+    return mt, preprocess(mt)
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(extra=st.integers(0, 260), scramble=st.booleans())
+def test_the_object_cut_matches_a_slow_twin(torus_mt, extra, scramble):
+    """The object-space cut against its slow twin, at any budget, by the bounds'
+    triangle deviations or by deviations with many ties (scrambled to a few values):
+    the same cut, a valid one (closed downwards), within the budget, and no triangle
+    left in it whose refinement would have fit."""
+    mt, b = torus_mt
+    dev = b.triangle_deviation
+    if scramble:
+        dev = np.round(dev / dev.max() * 3.0)
+    budget = mt.coarsest_faces + extra
+    cut = mt.cut("coarsest")
+    refine_where_farthest(cut, dev, budget)
+    twin = _farthest_twin(mt, dev, budget)
+    np.testing.assert_array_equal(cut.applied, twin.applied)
+    assert cut.n_faces == twin.n_faces == len(cut.triangles()) <= budget
+    type(cut)(mt, cut.applied)  # a valid cut: the constructor checks the closure
+    for t in cut.triangles():
+        if mt.creator[t] >= 0:
+            trial = cut.copy()
+            trial.raise_node(int(mt.creator[t]))
+            assert trial.n_faces > budget
+
+
+def test_the_object_cut_refines_where_the_surface_is_farthest(torus_mt):
+    """One triangle far off: the cut refines its creator (and the ancestors that must
+    come first) and nothing else while the budget allows only that."""
+    mt, _ = torus_mt
+    coarsest = mt.cut("coarsest").triangles()
+    # the coarsest cut's triangle whose creator needs the most ancestors raised first
+    t = max((t for t in coarsest if mt.creator[t] >= 0),
+            key=lambda t: len(mt.cut("coarsest").raise_node(int(mt.creator[t]))))
+    dev = np.zeros(mt.n_triangles)
+    dev[t] = 1.0
+    need = mt.cut("coarsest")
+    order = need.raise_node(int(mt.creator[t]))
+    assert len(order) > 1
+    cut = mt.cut("coarsest")
+    refine_where_farthest(cut, dev, need.n_faces)
+    assert cut.n_faces == need.n_faces
+    assert set(np.flatnonzero(~cut.applied)) == set(order.tolist())
+
+
 def test_refine_rejects_bad_input():
     mesh = make_torus(16, 8, texture_size=64)
     mt = build_mt(mesh)
@@ -580,6 +664,10 @@ def test_refine_rejects_bad_input():
         refine(mt.cut(), np.zeros(mt.n_nodes), 0)
     with pytest.raises(ValueError, match="shape"):
         refine(mt.cut(), np.zeros(3), 10)
+    with pytest.raises(ValueError, match="budget"):
+        refine_where_farthest(mt.cut(), np.zeros(mt.n_triangles), 0)
+    with pytest.raises(ValueError, match="shape"):
+        refine_where_farthest(mt.cut(), np.zeros(3), 10)
     b = preprocess(mt)
     with pytest.raises(ValueError, match="error must be"):
         node_errors(b, CAMERA, 256, error="psnr")

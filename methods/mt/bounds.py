@@ -87,6 +87,12 @@ class NodeBounds:
         L_min, L_max of the covered texels (0..1), or the material gray twice.
     deviation : ndarray (c,)
         Texture deviation in model units, monotone up the MT.
+    triangle_deviation : ndarray (nt,)
+        Each MT triangle's own deviation, in model units: the largest distance from an
+        original vertex its creator handed to it (the geometric part, triangle by
+        triangle) or its creator's own parametric part; 0 for an original triangle.
+        Not monotone: it measures the surface a cut holding the triangle has there,
+        which the object-space cut refines by (methods.mt.refine).
     child_start, children : ndarray (c + 1,), (kc,) int64
         The MT's children lists (CSR): the view errors take each node's maximum over
         its children (methods.mt.errors), as the deviation does here.
@@ -106,6 +112,7 @@ class NodeBounds:
     child_start: np.ndarray
     children: np.ndarray
     textured: bool
+    triangle_deviation: np.ndarray | None = None
     seconds: float = 0.0
 
 
@@ -156,13 +163,18 @@ def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
     lrange = _luminance_ranges(lum, fp_start, fp)
     # §2.2: how far the node moves the surface (monotone up the MT)
     child_start, children = mt.child_start.astype(np.int64), mt.children.astype(np.int64)
-    dev = np.maximum(
-        _vertex_moves(tris, P, m, start, split, own),
-        _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
-                    _min_uv_det(mt), fp_start, fp, start, split, own))
+    moved, held = _vertex_moves(tris, P, m, start, split, own)
+    parametric = _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
+                             _min_uv_det(mt), fp_start, fp, start, split, own)
+    creator = mt.creator.astype(np.int64)
+    by_triangle = np.where(creator >= 0, np.maximum(held, parametric[creator]), 0.0)
+    dev = np.maximum(moved, parametric)
     subtree_max(dev, child_start, children)
-    return NodeBounds(center, radius, sax, sang, hax, hang, lrange, dev, child_start,
-                      children, textured, time.perf_counter() - start_time)
+    return NodeBounds(center=center, radius=radius, silhouette_axis=sax,
+                      silhouette_angle=sang, shading_axis=hax, shading_angle=hang,
+                      luminance=lrange, deviation=dev, child_start=child_start,
+                      children=children, textured=textured, triangle_deviation=by_triangle,
+                      seconds=time.perf_counter() - start_time)
 
 
 def _min_uv_det(mt: MultiTriangulation) -> float:
@@ -521,7 +533,7 @@ def _footprints(tris, P, m, start, split, own):
     """
     original = np.arange(m, dtype=np.int64)
     centroids = (P[tris[:m, 0]] + P[tris[:m, 1]] + P[tris[:m, 2]]) / 3.0
-    fp_start, fp, _ = _hand_down(centroids, original, tris, P, start, split, own)
+    fp_start, fp, _, _ = _hand_down(centroids, original, tris, P, start, split, own)
     return fp_start, fp
 
 
@@ -536,15 +548,18 @@ def _vertex_moves(tris, P, m, start, split, own):
 
     Returns
     -------
-    ndarray (c,) float64
+    moved : ndarray (c,) float64
         The largest distance from a vertex node i collects to the created triangle it
         hands it to (0 for a node that collects none or creates nothing).
+    held : ndarray (nt,) float64
+        The largest distance from a vertex handed to MT triangle t to t (0 for an
+        original triangle, or one handed none).
     """
     corners = tris[:m].ravel()
     vertices, first = np.unique(corners, return_index=True)
-    _, _, moved = _hand_down(P[vertices], (first // 3).astype(np.int64), tris, P, start,
-                             split, own)
-    return moved
+    _, _, moved, held = _hand_down(P[vertices], (first // 3).astype(np.int64), tris, P,
+                                   start, split, own)
+    return moved, held
 
 
 @njit(cache=True)
@@ -570,6 +585,8 @@ def _hand_down(points, holder, tris, P, start, split, own):
     moved : ndarray (c,) float64
         The largest distance from an item node i collects to the created triangle it
         hands it to (0 if none).
+    held : ndarray (nt,) float64
+        The largest distance from an item handed to MT triangle t to t (0 if none).
     """
     c = start.shape[0] - 1
     head = np.full(tris.shape[0], -1, np.int64)  # newest item held by each MT triangle
@@ -580,6 +597,7 @@ def _hand_down(points, holder, tris, P, start, split, own):
     item_start = np.zeros(c + 1, np.int64)
     items = np.empty(max(16, 4 * points.shape[0]), np.int64)
     moved = np.zeros(c)
+    held = np.zeros(tris.shape[0])
     n = 0
     for i in range(c):
         first = n
@@ -602,9 +620,10 @@ def _hand_down(points, holder, tris, P, start, split, own):
                 k = items[q]
                 best_t, best = _nearest(points[k], own[c0:c1], tris, P)
                 moved[i] = max(moved[i], best)
+                held[best_t] = max(held[best_t], best)
                 nxt[k] = head[best_t]
                 head[best_t] = k
-    return item_start, items[:n].copy(), moved
+    return item_start, items[:n].copy(), moved, held
 
 
 @njit(cache=True)

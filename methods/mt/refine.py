@@ -246,6 +246,75 @@ def refine(cut: Cut, errors: np.ndarray, budget: int) -> tuple[int, int]:
     return int(raised), int(lowered)
 
 
+def refine_where_farthest(cut: Cut, triangle_deviation: np.ndarray, budget: int) -> int:
+    """Refine ``cut`` toward ``budget`` faces where its surface lies farthest from the
+    original, in place (the object-space cut); returns the nodes raised.
+
+    The triangle of the cut with the largest deviation (ties: the lower index) is
+    refined by raising its creator with every applied ancestor that must be raised
+    first (:meth:`~methods.mt.dag.Cut.raise_node`), if the faces that adds fit the
+    budget; otherwise the cut is left as it was and the triangle stays. Triangles the
+    raise brings back join the candidates. It ends when no triangle of the cut can be
+    refined within the budget.
+
+    Why not :func:`refine` by the monotone node deviation: a node's deviation is the
+    largest of its subtree's, and a collapse that slides a thin part's corner along the
+    part, or leaves a vertex far from its few new triangles, passes its deviation up to
+    every ancestor, though a later collapse may bring the surface back (on the milk
+    truck at 362 faces, frontier nodes carried 0.085 of the diagonal from such a
+    descendant, their own surface within 0.002, while the wheels kept 4 faces each).
+    A triangle's own deviation is the error the cut has where the triangle is, so the
+    budget goes where the surface is off now. Forced raises (as in Hoppe 1997's
+    view-dependent refinement) keep the cut valid.
+
+    Parameters
+    ----------
+    cut : Cut
+    triangle_deviation : ndarray (nt,) float64
+        Per MT triangle (:attr:`methods.mt.bounds.NodeBounds.triangle_deviation`).
+    budget : int
+        At least 1; a cut that starts above it is left as it is.
+    """
+    import heapq
+
+    mt = cut.mt
+    if budget < 1:
+        raise ValueError(f"budget must be at least 1 face, got {budget}")
+    dev = np.asarray(triangle_deviation, dtype=np.float64)
+    if dev.shape != (mt.n_triangles,):
+        raise ValueError(f"triangle_deviation must have shape ({mt.n_triangles},), "
+                         f"got {dev.shape}")
+    creator, destroyer, applied = mt.creator, mt.destroyer, cut.applied
+
+    def in_cut(t: int) -> bool:
+        return ((creator[t] < 0 or applied[creator[t]])
+                and (destroyer[t] < 0 or not applied[destroyer[t]]))
+
+    heap = [(-dev[t], int(t)) for t in cut.triangles() if creator[t] >= 0]
+    heapq.heapify(heap)
+    # a raise that does not fit never will: raising any of its ancestors first adds
+    # their faces to the cut and takes them off the raise
+    too_big = np.zeros(mt.n_nodes, np.bool_)
+    raised = 0
+    while heap:
+        _, t = heapq.heappop(heap)
+        node = int(creator[t])
+        if too_big[node] or not in_cut(t):
+            continue
+        order = cut.raise_node(node)
+        if cut.n_faces > budget:
+            for i in order[::-1]:
+                cut.lower_node(int(i))
+            too_big[node] = True
+            continue
+        raised += len(order)
+        for i in order:
+            for u in mt.node_removed(int(i)):
+                if creator[u] >= 0 and in_cut(u):
+                    heapq.heappush(heap, (-dev[u], int(u)))
+    return raised
+
+
 #: Where each view's refinement starts (:class:`Refiner`).
 REFINEMENTS = ("incremental", "scratch")
 
@@ -291,8 +360,9 @@ class Refiner:
                 "max_error": float(_max_on_cut(self.cut, err))}
 
     def refine_object(self, budget: int) -> None:
-        """The view-independent cut: object-space texture deviation."""
-        refine(self.cut, self.bounds.deviation, budget)
+        """The view-independent cut: refined where the texture deviation of its own
+        triangles is largest (:func:`refine_where_farthest`)."""
+        refine_where_farthest(self.cut, self.bounds.triangle_deviation, budget)
 
 
 def _max_on_cut(cut: Cut, err: np.ndarray) -> float:
