@@ -20,8 +20,10 @@ when it did not).
 
 The method is view-dependent: the runner images each evaluation view with that
 view's cut at the budget (:class:`ViewCuts`), starting each view from the previous
-one's cut; the mesh returned by ``simplify`` is the view-independent cut (object-space
-texture deviation), which the geometric and silhouette metrics use.
+one's cut; the mesh returned by ``simplify`` is the view-independent cut, refined where
+the texture deviation of its own triangles is largest (object space;
+methods.mt.refine.refine_where_farthest), which the geometric and silhouette metrics
+use.
 
 ``error`` selects the paper's four compared metrics (§6): ``perceptual`` (the
 imperceptibility distance), ``object`` (object-space texture deviation, view

@@ -48,7 +48,10 @@ Choices where the paper is vague:
   was handed, so the corners of large original triangles do not count against a node
   that merely holds their centroid. The deviation is the larger part, made monotone (a
   node's deviation is at least its children's), so that refining never raises the
-  error of the cut.
+  error of the cut. Each MT triangle also keeps its own deviation, not monotone: the
+  largest distance from a vertex handed to it, or its creator's parametric part. It
+  is the error a cut holding the triangle has there, by which the object-space cut
+  is refined (methods.mt.refine.refine_where_farthest).
 - *The other bounds are each node's own*, as §4 computes them, not nested up the MT:
   a child's created triangles are shared among several parents, so a parent's
   sphere can be smaller than a child's and its cones narrower. The view errors are

@@ -1,5 +1,7 @@
 """Budget refinement of a cut with two queues (Williams et al. 2003, §5.1): refine the
-node of largest error, coarsen the one of smallest, until the face budget holds.
+node of largest error, coarsen the one of smallest, until the face budget holds. The
+view-independent (object-space) cut is refined by its own triangles instead
+(:func:`refine_where_farthest`).
 
 Where refinement starts does not matter. Nodes are ranked by (error, index): errors
 are monotone up the MT (a parent's is at least its children's, methods.mt.errors) and
