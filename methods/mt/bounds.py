@@ -585,11 +585,9 @@ def _hand_down(points, holder, tris, P, start, split, own):
     -------
     item_start : ndarray (c + 1,) int64; items : ndarray (k,) int64
         CSR over nodes of the items each node collects.
-    moved : ndarray (c,) float64
+    moved : ndarray (c,) float64; held : ndarray (nt,) float64
         The largest distance from an item node i collects to the created triangle it
-        hands it to (0 if none).
-    held : ndarray (nt,) float64
-        The largest distance from an item handed to MT triangle t to t (0 if none).
+        hands it to, and from an item handed to MT triangle t to t (0 if none).
     """
     c = start.shape[0] - 1
     head = np.full(tris.shape[0], -1, np.int64)  # newest item held by each MT triangle

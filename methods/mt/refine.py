@@ -1,20 +1,27 @@
 """Budget refinement of a cut with two queues (Williams et al. 2003, §5.1): refine the
 node of largest error, coarsen the one of smallest, until the face budget holds. The
 view-independent (object-space) cut is refined by its own triangles instead
-(:func:`refine_where_farthest`).
+(:func:`refine_where_farthest`), not by the node deviation: that is its subtree's
+largest, and a collapse that slides a thin part's corner along the part passes its
+deviation up to every ancestor though a later one brings the surface back (on the milk
+truck at 362 faces, 0.085 of the diagonal over a surface within 0.002, while the wheels
+kept 4 faces each). A triangle's own deviation is the cut's error where it lies; forced
+raises (as in Hoppe 1997's view-dependent refinement) keep the cut valid.
 
-Where refinement starts does not matter. Nodes are ranked by (error, index): errors
-are monotone up the MT (a parent's is at least its children's, methods.mt.errors) and
-a parent's index is larger than its children's, so the ranking is a strict order in
-which every parent comes after its children. The refined set of the cut the loop ends
-on is then the longest run of top-ranked nodes that fits the budget (:func:`_refine`
-says why), whichever cut it started from: the previous view's cut only saves work, as
-§5.1 intends. Without the index, equal errors (every invisible node's is 0) would be
-taken in whatever order the heaps hold them, and the cut would depend on the start.
+With two queues, where refinement starts does not matter. Nodes are ranked by (error,
+index): errors are monotone up the MT (a parent's is at least its children's,
+methods.mt.errors) and a parent's index is larger than its children's, so the ranking is
+a strict order in which every parent comes after its children. The refined set of the
+cut the loop ends on is then the longest run of top-ranked nodes that fits the budget
+(:func:`_refine` says why), whichever cut it started from: the previous view's cut only
+saves work, as §5.1 intends. Without the index, equal errors (every invisible node's is
+0) would be taken in whatever order the heaps hold them, and the cut would depend on the
+start.
 """
 
 from __future__ import annotations
 
+import heapq
 import time
 from collections import namedtuple
 
@@ -259,16 +266,6 @@ def refine_where_farthest(cut: Cut, triangle_deviation: np.ndarray, budget: int)
     raise brings back join the candidates. It ends when no triangle of the cut can be
     refined within the budget.
 
-    Why not :func:`refine` by the monotone node deviation: a node's deviation is the
-    largest of its subtree's, and a collapse that slides a thin part's corner along the
-    part, or leaves a vertex far from its few new triangles, passes its deviation up to
-    every ancestor, though a later collapse may bring the surface back (on the milk
-    truck at 362 faces, frontier nodes carried 0.085 of the diagonal from such a
-    descendant, their own surface within 0.002, while the wheels kept 4 faces each).
-    A triangle's own deviation is the error the cut has where the triangle is, so the
-    budget goes where the surface is off now. Forced raises (as in Hoppe 1997's
-    view-dependent refinement) keep the cut valid.
-
     Parameters
     ----------
     cut : Cut
@@ -277,8 +274,6 @@ def refine_where_farthest(cut: Cut, triangle_deviation: np.ndarray, budget: int)
     budget : int
         At least 1; a cut that starts above it is left as it is.
     """
-    import heapq
-
     mt = cut.mt
     if budget < 1:
         raise ValueError(f"budget must be at least 1 face, got {budget}")
@@ -294,8 +289,8 @@ def refine_where_farthest(cut: Cut, triangle_deviation: np.ndarray, budget: int)
 
     heap = [(-dev[t], int(t)) for t in cut.triangles() if creator[t] >= 0]
     heapq.heapify(heap)
-    # a raise that does not fit never will: raising any of its ancestors first adds
-    # their faces to the cut and takes them off the raise
+    # a raise that does not fit never will (raising an ancestor first moves its faces
+    # from the raise to the cut)
     too_big = np.zeros(mt.n_nodes, np.bool_)
     raised = 0
     while heap:
