@@ -615,5 +615,55 @@ def test_the_stall_phases_release_seams_then_widen_then_lift_the_bound():
     assert [name for name, _ in _stall_phases(policy, rules._replace(seam_rule=False))] \
         == names[1:]  # no seams to release
     assert _stall_phases(Policy(), rules) == []
+    memory = Policy(stall_rotations=(120.0,), max_move=0.05, move_memory=True)
+    assert [name for name, _ in _stall_phases(memory, rules)] \
+        == ["120 degrees", "move memory dropped", "move bound lifted"]
     with pytest.raises(ValueError, match="max_move"):
         Policy(max_move=0.0)
+
+
+def _replayed_moves(mesh, log, collapses):
+    """The sum of each vertex's moves, replayed from the collapse log in plain Python:
+    per collapse the largest distance from the new position to the plane of a live
+    face around either end (before it), added to the larger of the two ends' sums.
+    Returns the largest sum over the first ``collapses`` collapses, as a fraction of
+    the diagonal."""
+    positions = mesh.welded.positions.copy()
+    faces = mesh.welded.faces.astype(np.int64).copy()
+    alive = np.ones(len(faces), bool)
+    moves = np.zeros(len(positions))
+    largest = 0.0
+    for i in range(collapses):
+        u, v, p = int(log["removed"][i]), int(log["kept"][i]), log["position"][i]
+        around = alive & ((faces == u) | (faces == v)).any(axis=1)
+        tri = positions[faces[around]]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(n, axis=1)
+        off = np.abs(np.einsum("fk,fk->f", n, p - tri[:, 0]))[length > 0] / length[length > 0]
+        moves[v] = max(moves[u], moves[v]) + off.max(initial=0.0)
+        largest = max(largest, moves[v])
+        alive[log["removed_faces"][i][log["removed_faces"][i] >= 0]] = False
+        for f in log["changed_faces"][log["changed_start"][i]:log["changed_start"][i + 1]]:
+            faces[f][faces[f] == u] = v
+        positions[v] = p
+    return largest / mesh.diagonal
+
+
+def test_the_move_memory_bounds_the_sum_of_a_vertexs_moves():
+    """With ``move_memory`` the move bound holds for the sum of each vertex's moves
+    (a slow replay of the log sums them), until the stall rule drops the memory;
+    without it each collapse alone is bounded, and the sums pass the bound."""
+    from bench.catalog.torus import make_torus
+
+    mesh = make_torus(24, 12)
+    bound = 0.04
+    result = simplify_mesh(mesh, 120, Policy(max_move=bound, move_memory=True))
+    phases = result.stats["stall_phases"]
+    before = len(result.log["removed"]) - sum(result.stats["stall_collapses"])
+    assert before > 0.8 * len(result.log["removed"])
+    assert _replayed_moves(mesh, result.log, before) <= bound * (1 + 1e-9)
+    assert result.stats["rejections"]["move bound"] > 0
+    assert phases[:1] in ([], ["move memory dropped"])
+    plain = simplify_mesh(mesh, 120, Policy(max_move=bound))
+    assert plain.stats["stall_phases"] == []
+    assert _replayed_moves(mesh, plain.log, len(plain.log["removed"])) > 2 * bound

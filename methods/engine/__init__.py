@@ -73,11 +73,13 @@ Topology rules (each rejection is counted and reported):
   last faces of a connected component or of a material (:mod:`methods.engine.parts`);
 - *move bound*: with a finite ``max_move``, the new position lies no farther than that
   fraction of the diagonal from the plane of a face around either end
-  (``loop._beyond_reach``).
+  (``loop._beyond_reach``); with ``move_memory``, no farther than what is left of the
+  bound after the ends' past moves (their sums, ``MeshArrays.drift``).
 
 When no valid collapse remains above the target, the stall rule goes on in phases
 (``Policy.stall_rotations``): the seam rule released (``stall_seams``), the fold-over
-limit widened to each of ``stall_rotations``, the move bound lifted.
+limit widened to each of ``stall_rotations``, the move memory dropped, the move bound
+lifted.
 
 The placements are guarded (``cost._near_ring``): the quadric's minimiser must lie
 within the bounding box of the edge's one-ring enlarged by a quarter of the edge's

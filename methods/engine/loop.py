@@ -157,9 +157,18 @@ def _check_candidate(u, v, fresh, mesh, rules, scratch):
                   scratch.efaces, rules.cos_limit, rules.boundary_lock)
     if code == VALID and rules.keep_parts and empties_a_part(u, v, mesh, scratch):
         return REJECT_LAST_OF_PART
-    if code == VALID and _beyond_reach(u, v, scratch.p, mesh, rules.max_move):
+    if code == VALID and _beyond_reach(u, v, scratch.p, mesh, _reach(u, v, mesh, rules)):
         return REJECT_MOVE_BOUND
     return code
+
+
+@njit(cache=True, _nrt=False)
+def _reach(u, v, mesh, rules):
+    """How far the collapse of u into v may move the surface: the move bound, less the
+    larger of the two ends' past moves under ``move_memory``."""
+    if rules.move_memory and rules.max_move != np.inf:
+        return rules.max_move - max(mesh.drift[u], mesh.drift[v])
+    return rules.max_move
 
 
 @njit(cache=True, _nrt=False)
@@ -169,22 +178,41 @@ def _beyond_reach(u, v, p, mesh, r):
     that. A move within the faces' planes (across a flat panel) is never beyond reach."""
     if r == np.inf:
         return False
-    P, F = mesh.P, mesh.F
+    if r < 0.0:
+        return True
     for x in (u, v):
         for c in corners(x, mesh.vhead, mesh.cnext):
-            f = c // 3
-            if not mesh.falive[f]:
-                continue
-            a, b, d = F[f, 0], F[f, 1], F[f, 2]
-            nx, ny, nz = _normal3(P[a, 0], P[a, 1], P[a, 2], P[b, 0], P[b, 1], P[b, 2],
-                                  P[d, 0], P[d, 1], P[d, 2])
-            length = math.sqrt(nx * nx + ny * ny + nz * nz)
-            if length == 0.0:
-                continue
-            off = nx * (p[0] - P[a, 0]) + ny * (p[1] - P[a, 1]) + nz * (p[2] - P[a, 2])
-            if abs(off) > r * length:
-                return True
+            if mesh.falive[c // 3]:
+                off, length = _plane_offset(c // 3, p, mesh)
+                if length != 0.0 and off > r * length:
+                    return True
     return False
+
+
+@njit(cache=True, _nrt=False)
+def _largest_offset(u, v, p, mesh):
+    """The largest distance from ``p`` to the plane of a live face around u or v."""
+    largest = 0.0
+    for x in (u, v):
+        for c in corners(x, mesh.vhead, mesh.cnext):
+            if mesh.falive[c // 3]:
+                off, length = _plane_offset(c // 3, p, mesh)
+                if length != 0.0:
+                    largest = max(largest, off / length)
+    return largest
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _plane_offset(f, p, mesh):
+    """(|n · (p - a)|, |n|) for face f = (a, b, d) with normal n = (b - a) × (d - a):
+    ``p``'s distance to the face's plane is their ratio."""
+    P, F = mesh.P, mesh.F
+    a, b, d = F[f, 0], F[f, 1], F[f, 2]
+    nx, ny, nz = _normal3(P[a, 0], P[a, 1], P[a, 2], P[b, 0], P[b, 1], P[b, 2],
+                          P[d, 0], P[d, 1], P[d, 2])
+    length = math.sqrt(nx * nx + ny * ny + nz * nz)
+    off = nx * (p[0] - P[a, 0]) + ny * (p[1] - P[a, 1]) + nz * (p[2] - P[a, 2])
+    return abs(off), length
 
 
 @njit(cache=True)
@@ -271,6 +299,8 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
     stays = p[0] == P[v, 0] and p[1] == P[v, 1] and p[2] == P[v, 2]
     if not stays:
         mesh.moved[v] = True
+    if rules.move_memory and rules.max_move != np.inf:
+        mesh.drift[v] = max(mesh.drift[u], mesh.drift[v]) + _largest_offset(u, v, p, mesh)
     n = log.count[LOG_COLLAPSES]
     first_changed = log.count[LOG_CHANGED]
     removed, n_changed, npairs, nt = _collapse(u, v, p.copy(), mesh, rules, terms, scratch,

@@ -49,7 +49,8 @@ CANNY_UNITS = ("area", "base-cost")
 #     faces of a connected component or of a material (methods.engine.parts);
 #   - move bound: with a finite ``max_move``, the new position lies farther than that
 #     fraction of the model's bounding-box diagonal from the plane of a face around
-#     either end (methods.engine.loop._beyond_reach).
+#     either end (methods.engine.loop._beyond_reach), or with ``move_memory`` farther
+#     than what the ends' past moves left of it.
 # Each code is 1 + its name's index in REJECTIONS, the order of the ``rejects`` counts.
 VALID = 0
 REJECT_LINK_CONDITION = 1
@@ -164,8 +165,9 @@ class Policy:
         quadric's point can turn some face by more than 90° for every candidate left
         (the glTF milk truck stopped at 164 faces for a target of 109); a wider limit
         lets the cheapest of them go. The phases in order: the seam rule released
-        (``stall_seams``), each of these angles, the move bound lifted (a finite
-        ``max_move``); each goes on only if the one before stopped. Results that reached
+        (``stall_seams``), each of these angles, the move memory dropped
+        (``move_memory``), the move bound lifted (a finite ``max_move``); each goes on
+        only if the one before stopped. Results that reached
         the target are unchanged by it; the collapses each phase took are in
         ``stats["stall_collapses"]``, the phases' names in ``stats["stall_phases"]``.
         Empty, without ``stall_seams`` and ``max_move`` (the default): stop.
@@ -178,6 +180,13 @@ class Policy:
         rule can drag a corner across its part, though no face folds. The stall rule
         lifts the bound in its last phase, so the target is still reached. ``inf`` (the
         default): no bound.
+    move_memory : bool
+        The move bound holds for the sum of a vertex's moves: each vertex carries how
+        far its collapses have moved the surface (the largest plane offset of each,
+        added up; a merged vertex takes the larger of its two ends' sums), and a
+        collapse whose sum would pass ``max_move`` is rejected under "move bound". Each
+        collapse alone within the bound can still walk a vertex across a part, step by
+        step (a face across the `vehicle` analogue's cab).
     stall_seams : bool
         The stall rule's first phase releases the seam rule: seam vertices then move
         like any other, their UVs from the wedge quadrics (``texture_weight``) or
@@ -202,6 +211,7 @@ class Policy:
     keep_parts: bool = True
     stall_rotations: tuple[float, ...] = ()
     max_move: float = float("inf")
+    move_memory: bool = False
     stall_seams: bool = False
 
     def __post_init__(self):

@@ -205,6 +205,8 @@ def _stall_phases(policy: Policy, rules: Rules) -> list[tuple[str, dict]]:
         phases.append(("seams released", {"seam_rule": False}))
     for degrees in policy.stall_rotations:
         phases.append((f"{degrees:g} degrees", {"cos_limit": math.cos(math.radians(degrees))}))
+    if math.isfinite(policy.max_move) and policy.move_memory:
+        phases.append(("move memory dropped", {"move_memory": False}))
     if math.isfinite(policy.max_move):
         phases.append(("move bound lifted", {"max_move": math.inf}))
     return phases
@@ -321,7 +323,7 @@ def _prepare(mesh: Mesh, policy: Policy, image) -> _Prepared:
     arrays = MeshArrays(P=P, Q=None, F=F, FW=FW, falive=falive, vhead=vhead, cnext=cnext,
                         valive=valive, vboundary=vboundary, wedge_vertex=wedge_vertex,
                         uv=uv, moved=np.zeros(nv, bool), WQ=None, group=group,
-                        group_live=group_live)
+                        group_live=group_live, drift=np.zeros(nv))
     return _Prepared(P0, P, lo, scale, arrays, boundary_corners, vperm, fperm,
                      np.zeros(N_KINDS, np.int64))
 
@@ -378,7 +380,8 @@ def _rules(mesh: Mesh, policy: Policy, image, prep: _Prepared, target_faces, ver
                  use_r5=bool(policy.r5_uv and has_uv and policy.placement == "memoryless"),
                  uv_fix=bool(policy.uv_correction and has_uv),
                  keep_parts=bool(policy.keep_parts), target=int(target_faces),
-                 max_collapses=limit, max_move=float(policy.max_move) * WORKING_DIAGONAL)
+                 max_collapses=limit, max_move=float(policy.max_move) * WORKING_DIAGONAL,
+                 move_memory=bool(policy.move_memory))
 
 
 def _terms(policy: Policy, prep: _Prepared, borders, rules: Rules) -> Terms:

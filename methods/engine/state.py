@@ -75,20 +75,21 @@ def renders(weights):
 #: lists ``vhead`` (nv,) / ``cnext`` (3m,), ``valive`` (nv,), ``vboundary`` (nv,),
 #: ``wedge_vertex`` (n_wedges,), ``uv`` (n_wedges, 2), ``moved`` (nv,) bool (a vertex
 #: whose position changed), ``WQ`` (n_wedges, 31) wedge quadrics or (1, 31), ``group``
-#: (m,) each face's part (methods.engine.parts) and ``group_live`` (g,) the live faces
-#: of each part.
+#: (m,) each face's part (methods.engine.parts), ``group_live`` (g,) the live faces
+#: of each part and ``drift`` (nv,) how far each vertex's moves have taken the surface
+#: around it, summed over its collapses (the accumulated move bound; Rules.move_memory).
 MeshArrays = namedtuple("MeshArrays", "P Q F FW falive vhead cnext valive vboundary "
-                                      "wedge_vertex uv moved WQ group group_live")
+                                      "wedge_vertex uv moved WQ group group_live drift")
 
 #: The policy as codes: ``placement`` (a value of PLACEMENTS), ``weights``
 #: (:data:`Weights`), ``cos_limit`` (fold-over), and booleans ``boundary_lock``,
 #: ``seam_rule``, ``boundary_rule``, ``verify``, ``has_uv``, ``use_r5`` (R^5 UVs),
 #: ``uv_fix`` (González 2008's UV correction), ``keep_parts`` (methods.engine.parts),
 #: ``target`` faces, ``max_collapses``, ``max_move`` (the move bound at unit diagonal;
-#: infinite: none).
+#: infinite: none), ``move_memory`` (the bound holds for the sum of a vertex's moves).
 Rules = namedtuple("Rules", "placement weights cos_limit boundary_lock seam_rule "
                             "boundary_rule verify has_uv use_r5 uv_fix keep_parts target "
-                            "max_collapses max_move")
+                            "max_collapses max_move move_memory")
 
 #: Read-only inputs of the cost terms: Canny ``borders`` (h, w) bool,
 #: ``canny_per_area`` (the Canny penalty per unit of an edge's face area, before the
