@@ -255,7 +255,8 @@ class EntropyTwin(Method):
     name = "entropy-twin"
     kernels = ("engine", "imaging", "canny")
     # 2: the texture-quadric pre-simplification merges each wedge once; 3: the engine's
-    # placement guard, parts and materials kept; 4: the move bound
+    # placement guard, parts and materials kept; 4: the move bound; 5: the bound holds
+    # for the sum of a vertex's moves
     version = "5"
     summary = ("half-edge collapses by viewpoint-entropy change over 20 views, twin edges "
                "at seams, UV correction, normals rebuilt")

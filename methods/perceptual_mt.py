@@ -144,6 +144,7 @@ class PerceptualMT(Method):
     # 9: the deviation's geometric part from the original vertices handed down the MT
     #    (the far corners of large original triangles inflated it)
     # 10: an exact node (deviation 0) has no silhouette or texture contrast
+    # 11: the object-space cut is refined where its own triangles' deviation is largest
     version = "11"
     summary = ("Williams et al. 2003: CSF imperceptibility distance over a Multi-Triangulation, "
                "per-view budget cuts")

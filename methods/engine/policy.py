@@ -184,9 +184,9 @@ class Policy:
         The move bound holds for the sum of a vertex's moves: each vertex carries how
         far its collapses have moved the surface (the largest plane offset of each,
         added up; a merged vertex takes the larger of its two ends' sums), and a
-        collapse whose sum would pass ``max_move`` is rejected under "move bound". Each
-        collapse alone within the bound can still walk a vertex across a part, step by
-        step (a face across the `vehicle` analogue's cab).
+        collapse whose sum would pass ``max_move`` is rejected under "move bound".
+        Without it, collapses each within the bound can still walk a vertex across a
+        part, step by step (a face across the `vehicle` analogue's cab).
     stall_seams : bool
         The stall rule's first phase releases the seam rule: seam vertices then move
         like any other, their UVs from the wedge quadrics (``texture_weight``) or

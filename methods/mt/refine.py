@@ -289,8 +289,8 @@ def refine_where_farthest(cut: Cut, triangle_deviation: np.ndarray, budget: int)
 
     heap = [(-dev[t], int(t)) for t in cut.triangles() if creator[t] >= 0]
     heapq.heapify(heap)
-    # a raise that does not fit never will (raising an ancestor first moves its faces
-    # from the raise to the cut)
+    # a raise that does not fit never will: every node adds faces (delta >= 1), and
+    # raising an ancestor first only moves its faces from the raise to the cut
     too_big = np.zeros(mt.n_nodes, np.bool_)
     raised = 0
     while heap:
@@ -357,8 +357,12 @@ class Refiner:
                 "max_error": float(_max_on_cut(self.cut, err))}
 
     def refine_object(self, budget: int) -> None:
-        """The view-independent cut: refined where the texture deviation of its own
-        triangles is largest (:func:`refine_where_farthest`)."""
+        """The view-independent cut: refined from the coarsest where the texture
+        deviation of its own triangles is largest (:func:`refine_where_farthest`)."""
+        if self.bounds.triangle_deviation is None:
+            raise ValueError("the bounds have no triangle deviations; build them with "
+                             "methods.mt.bounds.preprocess")
+        self.cut = self.mt.cut("coarsest")
         refine_where_farthest(self.cut, self.bounds.triangle_deviation, budget)
 
 
