@@ -536,7 +536,7 @@ def _footprints(tris, P, m, start, split, own):
     """
     original = np.arange(m, dtype=np.int64)
     centroids = (P[tris[:m, 0]] + P[tris[:m, 1]] + P[tris[:m, 2]]) / 3.0
-    fp_start, fp, _, _ = _hand_down(centroids, original, tris, P, start, split, own)
+    fp_start, fp, _ = _hand_down(centroids, original, tris, P, start, split, own)
     return fp_start, fp
 
 
@@ -560,8 +560,14 @@ def _vertex_moves(tris, P, m, start, split, own):
     """
     corners = tris[:m].ravel()
     vertices, first = np.unique(corners, return_index=True)
-    _, _, moved, held = _hand_down(P[vertices], (first // 3).astype(np.int64), tris, P,
-                                   start, split, own)
+    _, _, held = _hand_down(P[vertices], (first // 3).astype(np.int64), tris, P, start,
+                            split, own)
+    # a node hands its vertices to its created triangles only: its largest move is
+    # theirs
+    node = np.repeat(np.arange(len(start) - 1), np.diff(start))
+    created = np.arange(len(own)) >= split[node]
+    moved = np.zeros(len(start) - 1)
+    np.maximum.at(moved, node[created], held[own[created]])
     return moved, held
 
 
@@ -585,9 +591,8 @@ def _hand_down(points, holder, tris, P, start, split, own):
     -------
     item_start : ndarray (c + 1,) int64; items : ndarray (k,) int64
         CSR over nodes of the items each node collects.
-    moved : ndarray (c,) float64; held : ndarray (nt,) float64
-        The largest distance from an item node i collects to the created triangle it
-        hands it to, and from an item handed to MT triangle t to t (0 if none).
+    held : ndarray (nt,) float64
+        The largest distance from an item handed to MT triangle t to t (0 if none).
     """
     c = start.shape[0] - 1
     head = np.full(tris.shape[0], -1, np.int64)  # newest item held by each MT triangle
@@ -597,7 +602,6 @@ def _hand_down(points, holder, tris, P, start, split, own):
         head[holder[k]] = k
     item_start = np.zeros(c + 1, np.int64)
     items = np.empty(max(16, 4 * points.shape[0]), np.int64)
-    moved = np.zeros(c)
     held = np.zeros(tris.shape[0])
     n = 0
     for i in range(c):
@@ -620,11 +624,10 @@ def _hand_down(points, holder, tris, P, start, split, own):
             for q in range(first, n):
                 k = items[q]
                 best_t, best = _nearest(points[k], own[c0:c1], tris, P)
-                moved[i] = max(moved[i], best)
                 held[best_t] = max(held[best_t], best)
                 nxt[k] = head[best_t]
                 head[best_t] = k
-    return item_start, items[:n].copy(), moved, held
+    return item_start, items[:n].copy(), held
 
 
 @njit(cache=True)
