@@ -19,8 +19,11 @@ from methods.engine.terms.lindstrom_turk import (
     ZERO_TOL,
     _add_if_alpha_compatible,
     _oriented_volume_rows,
+    Patch,
+    _System,
     lt_cost,
     lt_placement,
+    make_profile,
     r5_texture_coordinates,
     texture_kappa,
 )
@@ -116,16 +119,18 @@ def edge_profile(V, F, i, j, pad=2):
                 edge_sq_len=float(np.sum((V[i] - V[j]) ** 2)))
 
 
+def kernel_profile(prof):
+    """The kernels' :data:`~methods.engine.state.Profile` of :func:`edge_profile`'s dict."""
+    return make_profile(*(prof[k] for k in ("tri_a", "tri_b", "tri_c", "bnd_a", "bnd_b",
+                                            "link", "n_tris", "n_bnd", "n_link")))
+
+
 def place(prof, **kw):
-    return lt_placement(prof["tri_a"], prof["tri_b"], prof["tri_c"], prof["bnd_a"],
-                        prof["bnd_b"], prof["n_tris"], prof["n_bnd"], prof["link"],
-                        prof["n_link"], prof["edge_sq_len"], **kw)
+    return lt_placement(kernel_profile(prof), prof["edge_sq_len"], **kw)
 
 
 def cost(p, prof, **kw):
-    return lt_cost(p, prof["tri_a"], prof["tri_b"], prof["tri_c"], prof["bnd_a"],
-                   prof["bnd_b"], prof["n_tris"], prof["n_bnd"], prof["link"],
-                   prof["n_link"], prof["edge_sq_len"], **kw)
+    return lt_cost(p, kernel_profile(prof), prof["edge_sq_len"], **kw)
 
 
 def collapse(V, F, i, j, p):
@@ -484,8 +489,9 @@ def test_degenerate_profiles_return_not_ok_without_nan():
     ]
     nan = np.full((3, 3), np.nan)
     cases.append((nan, nan, nan, empty, empty, 3, 0, nan, 3))
-    for args in cases:
-        p, ok = lt_placement(*args, 1.0)
+    for tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link in cases:
+        pr = make_profile(tri_a, tri_b, tri_c, bnd_a, bnd_b, link, n_tris, n_bnd, n_link)
+        p, ok = lt_placement(pr, 1.0)
         assert not ok
         assert np.array_equal(p, np.zeros(3))
 
@@ -493,36 +499,36 @@ def test_degenerate_profiles_return_not_ok_without_nan():
 def test_placement_rejects_counts_beyond_the_arrays():
     a = np.zeros((2, 3))
     with pytest.raises(ValueError, match="n_tris"):
-        lt_placement(a, a, a, a, a, 3, 0, a, 0, 1.0)
+        lt_placement(make_profile(a, a, a, a, a, a, 3, 0, 0), 1.0)
     with pytest.raises(ValueError, match="n_bnd"):
-        lt_placement(a, a, a, a, a, 1, 5, a, 0, 1.0)
+        lt_placement(make_profile(a, a, a, a, a, a, 1, 5, 0), 1.0)
     with pytest.raises(ValueError, match="n_link"):
-        lt_placement(a, a, a, a, a, 1, 0, a, -1, 1.0)
+        lt_placement(make_profile(a, a, a, a, a, a, 1, 0, -1), 1.0)
     with pytest.raises(ValueError, match="n_tris"):
-        lt_cost(np.zeros(3), a, a, a, a, a, 3, 0, a, 0, 1.0)
+        lt_cost(np.zeros(3), make_profile(a, a, a, a, a, a, 3, 0, 0), 1.0)
 
 
 def test_alpha_compatibility_follows_the_angle():
     cos2 = lambda d: np.cos(np.radians(d)) ** 2  # noqa: E731
     sin2 = lambda d: np.sin(np.radians(d)) ** 2  # noqa: E731
     half = np.radians(0.5)
+    def system():
+        return _System(A=np.zeros((3, 3)), b=np.zeros(3), H=np.zeros((3, 3)), c=np.zeros(3))
+
     for alpha, accepted in [(ALPHA_DEG, False), (0.25, True)]:
-        A, b = np.zeros((3, 3)), np.zeros(3)
-        n = _add_if_alpha_compatible(A, b, 0, 2.0, 0.0, 0.0, 4.0, 1.0,
-                                     cos2(alpha), sin2(alpha))
-        assert n == 1 and np.allclose(A[0], [1, 0, 0]) and b[0] == 2.0  # stored normalised
+        s, cone = system(), (cos2(alpha), sin2(alpha))
+        n = _add_if_alpha_compatible(s, 0, 2.0, 0.0, 0.0, 4.0, 1.0, cone)
+        # stored normalised
+        assert n == 1 and np.allclose(s.A[0], [1, 0, 0]) and s.b[0] == 2.0
         # a second line 0.5° from the first
-        n = _add_if_alpha_compatible(A, b, n, np.cos(half), np.sin(half), 0.0, 0.0, 1.0,
-                                     cos2(alpha), sin2(alpha))
+        n = _add_if_alpha_compatible(s, n, np.cos(half), np.sin(half), 0.0, 0.0, 1.0, cone)
         assert n == 1 + accepted
-        A[1], n = [0, 1, 0], 2
+        s.A[1], n = [0, 1, 0], 2
         # a third row 0.5° out of the plane of the first two
-        n = _add_if_alpha_compatible(A, b, n, 0.0, np.cos(half), np.sin(half), 0.0, 1.0,
-                                     cos2(alpha), sin2(alpha))
+        n = _add_if_alpha_compatible(s, n, 0.0, np.cos(half), np.sin(half), 0.0, 1.0, cone)
         assert n == 2 + accepted
     # a numerical zero is refused whatever its direction
-    A, b = np.zeros((3, 3)), np.zeros(3)
-    assert _add_if_alpha_compatible(A, b, 0, 1e-17, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0) == 0
+    assert _add_if_alpha_compatible(system(), 0, 1e-17, 0.0, 0.0, 0.0, 1.0, (1.0, 0.0)) == 0
 
 
 # -- cost ---------------------------------------------------------------------------------
@@ -569,8 +575,13 @@ def test_placement_minimises_the_cost_on_the_volume_plane():
 # -- texture coordinates ------------------------------------------------------------------
 
 def r5(p, tri, uv, kappa, **kw):
-    return r5_texture_coordinates(p, tri[:, 0], tri[:, 1], tri[:, 2],
-                                  uv[:, 0], uv[:, 1], uv[:, 2], len(tri), kappa, **kw)
+    return r5_texture_coordinates(p, patch_of(tri, uv), len(tri), kappa, **kw)
+
+
+def patch_of(tri, uv):
+    """The kernels' :data:`~methods.engine.state.Patch` of triangles (K, 3, 3) and their
+    UVs (K, 3, 2)."""
+    return Patch(tri[:, 0], tri[:, 1], tri[:, 2], uv[:, 0], uv[:, 1], uv[:, 2])
 
 
 def test_r5_reproduces_an_affine_texture_on_a_planar_patch():
@@ -616,8 +627,7 @@ def test_r5_minors_give_the_tetrahedron_volume():
     p, kappa, s, t = rng.normal(size=3), 1.7, 0.3, -0.8
     G, D = np.empty((10, 3)), np.empty((5, 3))
     uv0 = uv[0, 0].copy()
-    _oriented_volume_rows(p, tri[:, 0], tri[:, 1], tri[:, 2], uv[:, 0], uv[:, 1], uv[:, 2],
-                          0, uv0, kappa, D, G)
+    _oriented_volume_rows(p, patch_of(tri, uv), 0, uv0, kappa, D, G)
     g = G @ np.r_[s - uv0[0], t - uv0[1], 1.0]
     np.testing.assert_allclose(np.abs(g), np.abs(ref_minors(p, tri[0], uv[0], kappa, s, t)),
                                rtol=1e-12, atol=1e-12)
@@ -651,8 +661,7 @@ def test_r5_rejects_bad_arguments():
     with pytest.raises(ValueError, match="kappa"):
         r5(np.zeros(3), tri, uv, 0.0)
     with pytest.raises(ValueError, match="n_tris"):
-        r5_texture_coordinates(np.zeros(3), tri[:, 0], tri[:, 1], tri[:, 2], uv[:, 0],
-                               uv[:, 1], uv[:, 2], 3, 1.0)
+        r5_texture_coordinates(np.zeros(3), patch_of(tri, uv), 3, 1.0)
 
 
 # -- texture scale ------------------------------------------------------------------------

@@ -107,8 +107,7 @@ def _merge_uvs(u, v, p, npairs, mesh, rules, terms, scratch):
             uv[targets[i], 0] = best[0]
             uv[targets[i], 1] = best[1]
     elif has_uv and use_r5:
-        _r5_update(u, v, p, P, F, FW, falive, vhead, cnext, uv, terms.face_kappa,
-                   wmap_from, wmap_to, npairs, t, scratch.r5)
+        _r5_update(u, v, p, npairs, t, mesh, terms, scratch)
     elif has_uv:
         for i in range(npairs):
             a, b = wmap_from[i], wmap_to[i]

@@ -52,8 +52,8 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
 
     The steps: the summed quadric (:func:`_edge_quadric`), the vertex the rules force
     to stay (:func:`_forced_end`), the Lindstrom–Turk profile when a term or the
-    placement needs it, the Canny term (edge only), then the placement and the cost at
-    it (:func:`_place_and_cost`).
+    placement needs it, the Canny term (edge only), then the placement
+    (:func:`_place`, or the cheaper end, :func:`_cheaper_end`) and the cost there.
     """
     P, out_p = mesh.P, scratch.p
     if over_capacity(a, b, mesh, rules, scratch):  # the capacity rule (capacity.py)
@@ -64,22 +64,25 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
     if forced == -2:  # forbidden
         out_p[:] = P[b]
         return np.inf, b
-    pr = scratch.profile
-    n_tris = n_bnd = n_link = 0
+    weights, counts = rules.weights, scratch.profile.counts
+    counts[0] = counts[1] = counts[2] = 0  # no profile unless gathered
     l2 = ((P[a, 0] - P[b, 0]) ** 2 + (P[a, 1] - P[b, 1]) ** 2 + (P[a, 2] - P[b, 2]) ** 2)
-    if rules.weights.memoryless != 0.0 or rules.placement == PLACE_MEMORYLESS:
-        n_tris, n_bnd, n_link = _gather_profile(a, b, P, mesh.F, mesh.vhead, mesh.cnext,
-                                                mesh.falive, mesh.vboundary, scratch.efaces,
-                                                scratch.mark, scratch.tick, pr.tri_a,
-                                                pr.tri_b, pr.tri_c, pr.bnd_a, pr.bnd_b,
-                                                pr.link)
+    if weights.memoryless != 0.0 or rules.placement == PLACE_MEMORYLESS:
+        _gather_profile(a, b, mesh, scratch)
     canny = 0.0
-    if rules.weights.canny != 0.0:  # depends on the edge only, not on where the vertex goes
-        canny = rules.weights.canny * _canny_penalty(
+    if weights.canny != 0.0:  # depends on the edge only, not on where the vertex goes
+        canny = weights.canny * _canny_penalty(
             a, b, P, mesh.F, mesh.FW, mesh.uv, terms.borders, mesh.vhead, mesh.cnext,
             mesh.falive, scratch.efaces, terms.canny_per_area, scratch.no_record)
-    return _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules,
-                           terms, scratch, images)
+    if forced == -1 and rules.placement == PLACE_ENDPOINTS:
+        cost, keep = _cheaper_end(a, b, l2, mesh, rules, terms, scratch, images)
+        return cost + canny, keep
+    keep = _place(a, b, forced, l2, mesh, rules, scratch)
+    cost = _cost_at(out_p, scratch.qsum, weights, scratch.profile, l2) + canny
+    if renders(weights):
+        cost += _view_cost(a if keep == b else b, keep, out_p, mesh, rules, terms, scratch,
+                           images, np.inf)
+    return cost, keep
 
 
 @njit(cache=True, inline="always")
@@ -114,47 +117,39 @@ def _forced_end(a, b, mesh, rules, scratch):
 
 
 @njit(cache=True, inline="always")
-def _place_and_cost(a, b, forced, canny, n_tris, n_bnd, n_link, l2, mesh, rules, terms,
-                    scratch, images):
-    """The placement (into ``scratch.p``) and the cost there, for :func:`_evaluate`."""
-    P, out_p, qsum, pr = mesh.P, scratch.p, scratch.qsum, scratch.profile
-    weights, placement = rules.weights, rules.placement
-    w_q, w_lt = weights.quadric, weights.memoryless
-    tri_a, tri_b, tri_c, bnd_a, bnd_b, link = (pr.tri_a, pr.tri_b, pr.tri_c, pr.bnd_a,
-                                               pr.bnd_b, pr.link)
-    rendered = renders(weights)
-    keep = b
+def _cheaper_end(a, b, l2, mesh, rules, terms, scratch, images):
+    """The half-edge collapse of (a, b) in its cheaper direction, for :func:`_evaluate`:
+    (cost without the Canny term, the kept end), whose position goes into ``scratch.p``."""
+    P, qsum, pr, weights = mesh.P, scratch.qsum, scratch.profile, rules.weights
+    ca = _cost_at(P[a], qsum, weights, pr, l2)
+    cb = _cost_at(P[b], qsum, weights, pr, l2)
+    if renders(weights):
+        ca, cb = _both_ways(a, b, ca, cb, mesh, rules, terms, scratch, images)
+    keep = a if ca < cb else b
+    scratch.p[:] = P[keep]
+    return min(ca, cb), keep
+
+
+@njit(cache=True, inline="always")
+def _place(a, b, forced, l2, mesh, rules, scratch):
+    """Where the kept vertex of (a, b) goes (into ``scratch.p``), by the end the rules
+    force to stay or by the policy's placement; returns the kept vertex."""
+    P, out_p, qsum, placement = mesh.P, scratch.p, scratch.qsum, rules.placement
     if forced != -1:
-        keep = forced
         out_p[:] = P[forced]
-    elif placement == PLACE_ENDPOINTS:  # half-edge collapse, the cheaper direction
-        ca = _cost_at(P[a], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
-                      n_bnd, link, n_link, l2)
-        cb = _cost_at(P[b], qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
-                      n_bnd, link, n_link, l2)
-        if rendered:
-            ca, cb = _both_ways(a, b, ca, cb, mesh, rules, terms, scratch, images)
-        keep = a if ca < cb else b
-        out_p[:] = P[keep]
-        return min(ca, cb) + canny, keep
-    elif placement == PLACE_MIDPOINT:
+        return forced
+    if placement == PLACE_MIDPOINT:
         out_p[:] = 0.5 * (P[a] + P[b])
-    elif placement == PLACE_MEMORYLESS and n_tris > 0:
-        q, ok = lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
-                             l2, ALPHA_DEG, VOLUME_WEIGHT, BOUNDARY_WEIGHT)
+    elif placement == PLACE_MEMORYLESS and scratch.profile.counts[0] > 0:
+        q, ok = lt_placement(scratch.profile, l2, ALPHA_DEG, VOLUME_WEIGHT, BOUNDARY_WEIGHT)
         if ok and _near_ring(a, b, l2, mesh, q, LT_RING_BOX_MARGIN):
             out_p[:] = q
         else:  # degenerate profile, or a point far off (the placement guard): the
             # quadric's choice (Lindstrom & Turk fall back to it too)
             _guarded_optimal_point(a, b, l2, mesh, qsum, out_p)
-    else:  # optimal, or a profile too large for the workspace (n_tris == -1)
+    else:  # optimal, or a profile too large for the workspace (counts[0] == -1)
         _guarded_optimal_point(a, b, l2, mesh, qsum, out_p)
-    cost = _cost_at(out_p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris,
-                    n_bnd, link, n_link, l2) + canny
-    if rendered:
-        cost += _view_cost(a if keep == b else b, keep, out_p, mesh, rules, terms, scratch,
-                           images, np.inf)
-    return cost, keep
+    return b
 
 
 #: How far beyond the bounding box of an edge's one-ring the quadric's minimiser may lie,
@@ -212,13 +207,13 @@ def _guarded_optimal_point(a, b, l2, mesh, qsum, out_p):
 
 
 @njit(cache=True, _nrt=False)
-def _cost_at(p, qsum, w_q, w_lt, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link,
-             n_link, l2):
+def _cost_at(p, qsum, weights, pr, l2):
+    """The quadric and Lindstrom–Turk terms of a collapse to ``p``, weighted: the
+    summed quadric ``qsum``, the edge's profile ``pr`` and squared length ``l2``."""
     cost = 0.0
-    if w_q != 0.0:
-        cost += w_q * quadric_error(qsum, p)
-    if w_lt != 0.0 and n_tris > 0:
-        cost += w_lt * lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link,
-                               n_link, l2, VOLUME_WEIGHT, BOUNDARY_WEIGHT,
-                               SHAPE_WEIGHT)
+    if weights.quadric != 0.0:
+        cost += weights.quadric * quadric_error(qsum, p)
+    if weights.memoryless != 0.0 and pr.counts[0] > 0:
+        cost += weights.memoryless * lt_cost(p, pr, l2, VOLUME_WEIGHT, BOUNDARY_WEIGHT,
+                                             SHAPE_WEIGHT)
     return cost

@@ -97,18 +97,26 @@ Rules = namedtuple("Rules", "placement weights cos_limit boundary_lock seam_rule
 #: ``face_kappa`` (m,) κ of each face's texture patch.
 Terms = namedtuple("Terms", "borders canny_per_area face_kappa")
 
-#: Lindstrom–Turk profile of an edge, each (PROFILE_CAP, 3): triangle corners
-#: ``tri_a``/``tri_b``/``tri_c``, boundary edges ``bnd_a``/``bnd_b``, ``link`` vertices.
-Profile = namedtuple("Profile", "tri_a tri_b tri_c bnd_a bnd_b link")
+#: Lindstrom–Turk profile of an edge (:mod:`methods.engine.terms.lindstrom_turk`): the
+#: corners ``tri_a``, ``tri_b``, ``tri_c`` of the triangles around either end, the
+#: boundary edges ``bnd_a``, ``bnd_b`` there and the other corners, ``link``, each
+#: (rows, 3) float64 (PROFILE_CAP rows in the engine), and ``counts`` (3,) int64: how many
+#: rows of each are valid (triangles, boundary edges, link vertices).
+Profile = namedtuple("Profile", "tri_a tri_b tri_c bnd_a bnd_b link counts")
 
 #: Wedge-quadric scratch: wedge pairs ``gfrom``/``gto`` (WEDGE_PAIRS_CAP,), merged
 #: ``targets`` (WEDGE_TARGETS_CAP,), one group quadric ``g`` (31,).
 WedgeScratch = namedtuple("WedgeScratch", "gfrom gto targets g")
 
-#: R^5 scratch: the patch's triangles ``tri_a``/``tri_b``/``tri_c`` (PROFILE_CAP, 3)
-#: and their UVs ``uv_a``/``uv_b``/``uv_c`` (PROFILE_CAP, 2); the merged vertex's wedge
-#: ``targets`` (WEDGE_TARGETS_CAP,) and their ``new_uv`` (WEDGE_TARGETS_CAP, 2).
-R5Scratch = namedtuple("R5Scratch", "tri_a tri_b tri_c uv_a uv_b uv_c targets new_uv")
+#: The triangles of one texture patch around an edge
+#: (:func:`methods.engine.terms.lindstrom_turk.r5_texture_coordinates`): corners
+#: ``tri_a``, ``tri_b``, ``tri_c`` (rows, 3) and their UVs ``uv_a``, ``uv_b``, ``uv_c``
+#: (rows, 2), float64 (PROFILE_CAP rows in the engine).
+Patch = namedtuple("Patch", "tri_a tri_b tri_c uv_a uv_b uv_c")
+
+#: R^5 scratch: the ``patch`` (:data:`Patch`); the merged vertex's wedge ``targets``
+#: (WEDGE_TARGETS_CAP,) and their ``new_uv`` (WEDGE_TARGETS_CAP, 2).
+R5Scratch = namedtuple("R5Scratch", "patch targets new_uv")
 
 #: Per-candidate scratch: ``mark``/``tick`` (dedup without clearing), neighbour lists
 #: ``nbr_u``/``nbr_v`` (nv,), ``efaces`` (EDGE_FACES_CAP,), wedge pairs
@@ -155,14 +163,14 @@ N_LOG_COUNTS = 4
 def new_scratch(nv):
     """A :data:`Scratch` for a mesh of ``nv`` welded vertices."""
     cap = PROFILE_CAP
-    profile = Profile(*(np.empty((cap, 3)) for _ in range(6)))
+    profile = Profile(*(np.empty((cap, 3)) for _ in range(6)), counts=np.zeros(3, np.int64))
     wq = WedgeScratch(gfrom=np.empty(WEDGE_PAIRS_CAP, np.int64),
                       gto=np.empty(WEDGE_PAIRS_CAP, np.int64),
                       targets=np.empty(WEDGE_TARGETS_CAP, np.int64),
                       g=np.empty(WEDGE_QUADRIC_SIZE))
-    r5 = R5Scratch(tri_a=np.empty((cap, 3)), tri_b=np.empty((cap, 3)), tri_c=np.empty((cap, 3)),
-                   uv_a=np.empty((cap, 2)), uv_b=np.empty((cap, 2)), uv_c=np.empty((cap, 2)),
-                   targets=np.empty(WEDGE_TARGETS_CAP, np.int64),
+    patch = Patch(tri_a=np.empty((cap, 3)), tri_b=np.empty((cap, 3)), tri_c=np.empty((cap, 3)),
+                  uv_a=np.empty((cap, 2)), uv_b=np.empty((cap, 2)), uv_c=np.empty((cap, 2)))
+    r5 = R5Scratch(patch=patch, targets=np.empty(WEDGE_TARGETS_CAP, np.int64),
                    new_uv=np.empty((WEDGE_TARGETS_CAP, 2)))
     return Scratch(mark=np.zeros(nv, np.int64), tick=np.zeros(1, np.int64),
                    nbr_u=np.empty(nv, np.int64), nbr_v=np.empty(nv, np.int64),

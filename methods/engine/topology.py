@@ -196,11 +196,17 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
 
 
 @njit(cache=True, _nrt=False)
-def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, tick,
-                    tri_a, tri_b, tri_c, bnd_a, bnd_b, link):
-    """The Lindstrom–Turk profile of edge (a, b): triangles around either end, their
-    boundary edges (oriented as in the triangle) and the link vertices. Returns
-    (n_tris, n_bnd, n_link), or (-1, 0, 0) when the workspace is too small."""
+def _gather_profile(a, b, mesh, scratch):
+    """The Lindstrom–Turk profile of edge (a, b) into ``scratch.profile``
+    (:data:`methods.engine.state.Profile`): triangles around either end, their boundary
+    edges (oriented as in the triangle) and the link vertices, with their counts, or
+    counts (-1, 0, 0) when the workspace is too small."""
+    P, F, vhead, cnext, falive = mesh.P, mesh.F, mesh.vhead, mesh.cnext, mesh.falive
+    efaces, mark, tick, pr = scratch.efaces, scratch.mark, scratch.tick, scratch.profile
+    tri_a, tri_b, tri_c, bnd_a, bnd_b, link = (pr.tri_a, pr.tri_b, pr.tri_c, pr.bnd_a,
+                                               pr.bnd_b, pr.link)
+    counts = pr.counts
+    counts[0], counts[1], counts[2] = -1, 0, 0  # until gathered: too large
     cap = tri_a.shape[0]
     n_tris = 0
     n_bnd = 0
@@ -218,7 +224,7 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, t
                 has_y = F[f, 0] == y or F[f, 1] == y or F[f, 2] == y
                 if side == 0 or not has_y:  # faces of the edge are counted once
                     if n_tris == cap:
-                        return -1, 0, 0
+                        return
                     f0, f1, f2 = F[f, 0], F[f, 1], F[f, 2]
                     for d in range(3):  # scalar copies: no temporary views per row
                         tri_a[n_tris, d] = P[f0, d]
@@ -228,10 +234,10 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, t
                     for j in range(3):
                         i0, i1 = F[f, j], F[f, (j + 1) % 3]
                         if (i0 == a or i0 == b or i1 == a or i1 == b) and \
-                                vboundary[i0] and vboundary[i1] and \
+                                mesh.vboundary[i0] and mesh.vboundary[i1] and \
                                 _edge_faces(i0, i1, F, vhead, cnext, falive, efaces) == 1:
                             if n_bnd == cap:
-                                return -1, 0, 0
+                                return
                             for d in range(3):
                                 bnd_a[n_bnd, d] = P[i0, d]
                                 bnd_b[n_bnd, d] = P[i1, d]
@@ -241,11 +247,11 @@ def _gather_profile(a, b, P, F, vhead, cnext, falive, vboundary, efaces, mark, t
                         if mark[w] != t:
                             mark[w] = t
                             if n_link == cap:
-                                return -1, 0, 0
+                                return
                             for d in range(3):
                                 link[n_link, d] = P[w, d]
                             n_link += 1
-    return n_tris, n_bnd, n_link
+    counts[0], counts[1], counts[2] = n_tris, n_bnd, n_link
 
 
 @njit(cache=True, _nrt=False)

@@ -5,26 +5,24 @@ original mesh: where the vertex of a collapsed edge goes, and what the collapse 
 are computed from the triangles around the edge *now*. The three public kernels are
 called by the edge-collapse engine once per candidate edge, inside its own numba loop::
 
-    p, ok = lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd,
-                         link, n_link, edge_sq_len)
-    cost = lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd,
-                   link, n_link, edge_sq_len)
-    uv, ok = r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c,
-                                    n_tris, kappa)       # once per texture patch
+    p, ok = lt_placement(profile, edge_sq_len)
+    cost = lt_cost(p, profile, edge_sq_len)
+    uv, ok = r5_texture_coordinates(p, patch, n_tris, kappa)  # once per texture patch
 
 and :func:`texture_kappa` computes the per-patch texture scale κ once, before the
-loop. All arguments are plain arrays with a count of valid rows, so the engine can
-reuse fixed-size scratch buffers. (From Python, pass every argument: numba's
+loop. A :data:`Profile` is fixed-size arrays with counts of their valid rows, so the
+engine reuses one as its scratch buffer. (From Python, pass every argument: numba's
 dispatcher is some 50 times slower when defaults are omitted.)
 
-The edge profile
-----------------
+The edge profile (:data:`Profile`)
+----------------------------------
 ``tri_a, tri_b, tri_c`` are the corners of every triangle incident to either endpoint
 of the edge *before* the collapse, including the one or two triangles the collapse
 deletes, wound counter-clockwise seen from outside (normal by the right-hand rule).
 ``bnd_a, bnd_b`` are the boundary edges incident to either endpoint (the collapsed edge
 itself included when it is a boundary edge), each oriented as in its triangle.
 ``link`` holds the distinct corners of those triangles other than the two endpoints.
+``counts`` holds the valid rows of each: triangles, boundary edges, link vertices.
 ``edge_sq_len`` is the squared length L² of the collapsed edge.
 
 Placement: constraints in order, while alpha-compatible
@@ -107,7 +105,13 @@ are therefore only comparable after normalising the models' size.
 
 Texture coordinates in R⁵ (Lindstrom & Turk 2000, §4.1.1, Eqs. 4–7)
 ---------------------------------------------------------------------
-See :func:`r5_texture_coordinates`.
+See :func:`r5_texture_coordinates`. Reconstruction notes: in our copy of the paper the
+1/18 of Eqs. 6–7 and the outer ½ combine to the 1/36 of Eq. 5, which is what is used
+(a constant factor does not move the minimiser). The sign convention of the g's does
+not matter: every term is squared, and in Eq. 6 each g is summed with itself across
+triangles. On a planar patch with an affine texture map and p in its plane, all lifted
+points lie in one 2-plane of R⁵, every tetrahedron is flat at the true (s, t), and the
+preservation step alone recovers the affine map exactly (tested).
 
 References
 ----------
@@ -124,12 +128,16 @@ References
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
+from methods.engine.state import Patch, Profile
+
 __all__ = ["lt_placement", "lt_cost", "r5_texture_coordinates", "texture_kappa",
-           "ALPHA_DEG", "VOLUME_WEIGHT", "BOUNDARY_WEIGHT", "SHAPE_WEIGHT", "ZERO_TOL"]
+           "Patch", "Profile", "make_profile", "ALPHA_DEG", "VOLUME_WEIGHT", "BOUNDARY_WEIGHT",
+           "SHAPE_WEIGHT", "ZERO_TOL"]
 
 #: Alpha-compatibility angle in degrees (CGAL's fixed value).
 ALPHA_DEG = 1.0
@@ -140,6 +148,19 @@ SHAPE_WEIGHT = 0.0
 #: A constraint vector shorter than ZERO_TOL times the magnitude of the terms summed into
 #: it is rounding noise (1e-10 leaves ~6 digits of headroom above double rounding).
 ZERO_TOL = 1e-10
+
+#: The constraint system ``A`` p = ``b`` (A (3, 3), b (3,)) that the placement fills row
+#: by row, and the Hessian ``H`` (3, 3) and linear part ``c`` (3,) of the quadratic
+#: criterion being added.
+_System = namedtuple("_System", "A b H c")
+
+
+def make_profile(tri_a, tri_b, tri_c, bnd_a, bnd_b, link, n_tris, n_bnd, n_link) -> Profile:
+    """A :data:`Profile` of the given arrays (as float64) and counts."""
+    f = [np.ascontiguousarray(x, dtype=np.float64) for x in (tri_a, tri_b, tri_c, bnd_a,
+                                                                bnd_b, link)]
+    return Profile(*f, np.array([n_tris, n_bnd, n_link], np.int64))
+
 
 # The 10 choices of 3 of the 5 R^5 coordinates (x, y, z, κs, κt): the 3x3 minors that
 # make up the oriented volume of Eq. 4, in lexicographic order.
@@ -165,31 +186,30 @@ def _frobenius3(H):
 
 
 @njit(cache=True, _nrt=False)
-def _check_profile(tri_a, tri_b, tri_c, n_tris, bnd_a, bnd_b, n_bnd):
-    """Raise ValueError when a count is negative or exceeds its arrays' rows."""
-    if n_tris < 0 or n_tris > tri_a.shape[0] or n_tris > tri_b.shape[0] \
-            or n_tris > tri_c.shape[0]:
+def _check_profile(pr):
+    """Raise ValueError when a count of ``pr`` is negative or exceeds its arrays' rows."""
+    n_tris, n_bnd, n_link = pr.counts[0], pr.counts[1], pr.counts[2]
+    if n_tris < 0 or n_tris > pr.tri_a.shape[0] or n_tris > pr.tri_b.shape[0] \
+            or n_tris > pr.tri_c.shape[0]:
         raise ValueError("n_tris must be in [0, rows of tri_a/tri_b/tri_c]")
-    if n_bnd < 0 or n_bnd > bnd_a.shape[0] or n_bnd > bnd_b.shape[0]:
+    if n_bnd < 0 or n_bnd > pr.bnd_a.shape[0] or n_bnd > pr.bnd_b.shape[0]:
         raise ValueError("n_bnd must be in [0, rows of bnd_a/bnd_b]")
-
-
-@njit(cache=True, _nrt=False)
-def _check_link(link, n_link):
-    if n_link < 0 or n_link > link.shape[0]:
+    if n_link < 0 or n_link > pr.link.shape[0]:
         raise ValueError("n_link must be in [0, rows of link]")
 
 
 # -- the constraint system A p = b (3D) ---------------------------------------------------
 
 @njit(cache=True, _nrt=False)
-def _add_if_alpha_compatible(A, b, n, a0, a1, a2, rhs, ref, cos2, sin2):
-    """Append the equation a · p = rhs to the first ``n`` rows of ``A p = b`` if it is
-    alpha-compatible with them; return the new count.
+def _add_if_alpha_compatible(s, n, a0, a1, a2, rhs, ref, cone):
+    """Append the equation a · p = rhs to the first ``n`` rows of ``s.A p = s.b``
+    (:data:`_System`) if it is alpha-compatible with them; return the new count.
 
     ``ref`` is the magnitude of the terms summed into ``a`` (the numerical-zero test);
-    ``cos2``/``sin2`` are cos²α and sin²α. Kept rows are stored normalised.
+    ``cone`` is (cos²α, sin²α). Kept rows are stored normalised.
     """
+    A, b = s.A, s.b
+    cos2, sin2 = cone
     if n >= 3:
         return n
     aa = a0 * a0 + a1 * a1 + a2 * a2
@@ -216,15 +236,17 @@ def _add_if_alpha_compatible(A, b, n, a0, a1, a2, rhs, ref, cos2, sin2):
 
 
 @njit(cache=True)
-def _add_from_gradient(A, b, n, H, c, ref, cos2, sin2):
-    """Candidates for minimising ½ pᵀHp + cᵀp on the set the first ``n`` equations fix:
-    the rows (H q) · p = -q · c for q in an orthonormal basis of the free directions.
+def _add_from_gradient(s, n, ref, cone):
+    """Candidates for minimising ½ pᵀHp + cᵀp (``s.H``, ``s.c``) on the set the first
+    ``n`` equations of ``s`` fix: the rows (H q) · p = -q · c for q in an orthonormal
+    basis of the free directions.
 
     q runs over the eigenvectors of the reduced Hessian QᵀHQ, largest eigenvalue (best
     determined direction) first. Any basis gives the same minimiser when all
     candidates are accepted; the eigenbasis makes the alpha test, which sees the raw
     rows H q, independent of the coordinate frame.
     """
+    A, H, c = s.A, s.H, s.c
     for i in range(3):
         if not (math.isfinite(c[i]) and math.isfinite(H[i, 0]) and math.isfinite(H[i, 1])
                 and math.isfinite(H[i, 2])):
@@ -232,8 +254,7 @@ def _add_from_gradient(A, b, n, H, c, ref, cos2, sin2):
     if n == 0:
         _, U = np.linalg.eigh(H)  # ascending eigenvalues
         for k in range(2, -1, -1):
-            n = _add_projected_row(A, b, n, H, c, U[0, k], U[1, k], U[2, k],
-                                   ref, cos2, sin2)
+            n = _add_projected_row(s, n, U[0, k], U[1, k], U[2, k], ref, cone)
     elif n == 1:
         # u = a0 × (the axis least aligned with a0), w = a0 × u: unit, ⟂ a0 and each other
         k = 0
@@ -261,17 +282,16 @@ def _add_from_gradient(A, b, n, H, c, ref, cos2, sin2):
         r11 = _quad_form(H, w0, w1, w2, w0, w1, w2)
         theta = 0.5 * math.atan2(2.0 * r01, r00 - r11)
         cs, sn = math.cos(theta), math.sin(theta)
-        n = _add_projected_row(A, b, n, H, c, cs * u0 + sn * w0, cs * u1 + sn * w1,
-                               cs * u2 + sn * w2, ref, cos2, sin2)
-        n = _add_projected_row(A, b, n, H, c, cs * w0 - sn * u0, cs * w1 - sn * u1,
-                               cs * w2 - sn * u2, ref, cos2, sin2)
+        n = _add_projected_row(s, n, cs * u0 + sn * w0, cs * u1 + sn * w1,
+                               cs * u2 + sn * w2, ref, cone)
+        n = _add_projected_row(s, n, cs * w0 - sn * u0, cs * w1 - sn * u1,
+                               cs * w2 - sn * u2, ref, cone)
     elif n == 2:
         q0 = A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]
         q1 = A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]
         q2 = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
         inv = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
-        n = _add_projected_row(A, b, n, H, c, q0 * inv, q1 * inv, q2 * inv,
-                               ref, cos2, sin2)
+        n = _add_projected_row(s, n, q0 * inv, q1 * inv, q2 * inv, ref, cone)
     return n
 
 
@@ -284,13 +304,14 @@ def _quad_form(H, x0, x1, x2, y0, y1, y2):
 
 
 @njit(cache=True, _nrt=False)
-def _add_projected_row(A, b, n, H, c, q0, q1, q2, ref, cos2, sin2):
+def _add_projected_row(s, n, q0, q1, q2, ref, cone):
     """Candidate (H q) · p = -q · c for a unit free direction q (H symmetric)."""
+    H, c = s.H, s.c
     a0 = H[0, 0] * q0 + H[0, 1] * q1 + H[0, 2] * q2
     a1 = H[1, 0] * q0 + H[1, 1] * q1 + H[1, 2] * q2
     a2 = H[2, 0] * q0 + H[2, 1] * q1 + H[2, 2] * q2
     rhs = -(c[0] * q0 + c[1] * q1 + c[2] * q2)
-    return _add_if_alpha_compatible(A, b, n, a0, a1, a2, rhs, ref, cos2, sin2)
+    return _add_if_alpha_compatible(s, n, a0, a1, a2, rhs, ref, cone)
 
 
 @njit(cache=True, _nrt=False)
@@ -366,26 +387,27 @@ def _add_cross_gram(H, e0, e1, e2, w):
 
 
 @njit(cache=True, _nrt=False)
-def _add_volume_preservation(A, b, n, tri_a, tri_b, tri_c, n_tris, o, cos2, sin2):
+def _add_volume_preservation(s, n, pr, o, cone):
     """Σ_T V_T(p) = 0  ⇔  (Σ n_T) · p = Σ det[a, b, c]."""
     s0 = s1 = s2 = sd = ref = 0.0
-    for i in range(n_tris):
-        n0, n1, n2, d = _triangle_normal_det(tri_a, tri_b, tri_c, i, o)
+    for i in range(pr.counts[0]):
+        n0, n1, n2, d = _triangle_normal_det(pr.tri_a, pr.tri_b, pr.tri_c, i, o)
         s0 += n0
         s1 += n1
         s2 += n2
         sd += d
         ref += math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-    return _add_if_alpha_compatible(A, b, n, s0, s1, s2, sd, ref, cos2, sin2)
+    return _add_if_alpha_compatible(s, n, s0, s1, s2, sd, ref, cone)
 
 
 @njit(cache=True)
-def _add_boundary_preservation(A, b, n, bnd_a, bnd_b, n_bnd, o, H, c, cos2, sin2):
+def _add_boundary_preservation(s, n, pr, o, cone):
     """Σ_e A_e(p) = 0  ⇔  E × p = -M with E = Σ e, M = Σ m; rank 2, so minimise
     ½ |E × p + M|²: H = |E|² I - E Eᵀ, c = [E]×ᵀ M = -E × M."""
+    H, c = s.H, s.c
     E0 = E1 = E2 = M0 = M1 = M2 = ref = 0.0
-    for j in range(n_bnd):
-        e0, e1, e2, m0, m1, m2 = _boundary_edge_terms(bnd_a, bnd_b, j, o)
+    for j in range(pr.counts[1]):
+        e0, e1, e2, m0, m1, m2 = _boundary_edge_terms(pr.bnd_a, pr.bnd_b, j, o)
         E0 += e0
         E1 += e1
         E2 += e2
@@ -398,19 +420,19 @@ def _add_boundary_preservation(A, b, n, bnd_a, bnd_b, n_bnd, o, H, c, cos2, sin2
     c[0] = -(E1 * M2 - E2 * M1)
     c[1] = -(E2 * M0 - E0 * M2)
     c[2] = -(E0 * M1 - E1 * M0)
-    return _add_from_gradient(A, b, n, H, c, ref * ref, cos2, sin2)
+    return _add_from_gradient(s, n, ref * ref, cone)
 
 
 @njit(cache=True)
-def _add_volume_boundary_optimisation(A, b, n, tri_a, tri_b, tri_c, n_tris, bnd_a, bnd_b,
-                                      n_bnd, o, edge_sq_len, volume_weight,
-                                      boundary_weight, H, c, cos2, sin2):
+def _add_volume_boundary_optimisation(s, n, pr, o, edge_sq_len, volume_weight,
+                                      boundary_weight, cone):
     """Minimise w_V Σ V_T² + w_B L² Σ |A_e|², multiplied by 36 so that the volume part
     is Σ (n_T · p - det_T)² and the boundary part 9 w_B L² Σ |e × p + m|²."""
+    H, c = s.H, s.c
     H[:, :] = 0.0
     c[:] = 0.0
-    for i in range(n_tris):
-        n0, n1, n2, d = _triangle_normal_det(tri_a, tri_b, tri_c, i, o)
+    for i in range(pr.counts[0]):
+        n0, n1, n2, d = _triangle_normal_det(pr.tri_a, pr.tri_b, pr.tri_c, i, o)
         H[0, 0] += volume_weight * n0 * n0
         H[0, 1] += volume_weight * n0 * n1
         H[0, 2] += volume_weight * n0 * n2
@@ -424,18 +446,19 @@ def _add_volume_boundary_optimisation(A, b, n, tri_a, tri_b, tri_c, n_tris, bnd_
     H[2, 0] = H[0, 2]
     H[2, 1] = H[1, 2]
     wb = 9.0 * boundary_weight * edge_sq_len
-    for j in range(n_bnd):
-        e0, e1, e2, m0, m1, m2 = _boundary_edge_terms(bnd_a, bnd_b, j, o)
+    for j in range(pr.counts[1]):
+        e0, e1, e2, m0, m1, m2 = _boundary_edge_terms(pr.bnd_a, pr.bnd_b, j, o)
         _add_cross_gram(H, e0, e1, e2, wb)
         c[0] -= wb * (e1 * m2 - e2 * m1)
         c[1] -= wb * (e2 * m0 - e0 * m2)
         c[2] -= wb * (e0 * m1 - e1 * m0)
-    return _add_from_gradient(A, b, n, H, c, _frobenius3(H), cos2, sin2)
+    return _add_from_gradient(s, n, _frobenius3(H), cone)
 
 
 @njit(cache=True)
-def _add_shape_optimisation(A, b, n, link, n_link, o, H, c, cos2, sin2):
+def _add_shape_optimisation(s, n, pr, o, cone):
     """Minimise ½ Σ_link |p - v|²: H = |link| I, c = -Σ v."""
+    H, c, link, n_link = s.H, s.c, pr.link, pr.counts[2]
     H[:, :] = 0.0
     c[:] = 0.0
     for k in range(n_link):
@@ -443,32 +466,23 @@ def _add_shape_optimisation(A, b, n, link, n_link, o, H, c, cos2, sin2):
             c[j] -= link[k, j] - o[j]
     for j in range(3):
         H[j, j] = n_link
-    return _add_from_gradient(A, b, n, H, c, float(n_link), cos2, sin2)
+    return _add_from_gradient(s, n, float(n_link), cone)
 
 
 # -- public kernels -----------------------------------------------------------------------
 
 @njit(cache=True)
-def lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
-                 edge_sq_len, alpha_deg=ALPHA_DEG, volume_weight=VOLUME_WEIGHT,
+def lt_placement(pr, edge_sq_len, alpha_deg=ALPHA_DEG, volume_weight=VOLUME_WEIGHT,
                  boundary_weight=BOUNDARY_WEIGHT):
     """Lindstrom–Turk vertex placement for one edge collapse.
 
     Parameters
     ----------
-    tri_a, tri_b, tri_c : ndarray of shape (K, 3), float64
-        Corners of the triangles incident to either endpoint before the collapse
-        (the 1–2 deleted triangles included), counter-clockwise seen from outside.
-        Rows ``[:n_tris]`` are used.
-    bnd_a, bnd_b : ndarray of shape (B, 3), float64
-        Start and end of the boundary edges incident to either endpoint, oriented as in
-        their triangle. Rows ``[:n_bnd]`` are used.
-    n_tris, n_bnd : int
-        Valid rows.
-    link : ndarray of shape (M, 3), float64
-        Distinct corners of those triangles other than the two endpoints (the shape
-        criterion); rows ``[:n_link]`` are used.
-    n_link : int
+    pr : Profile
+        The edge's profile (:data:`Profile`): the triangles incident to either endpoint
+        before the collapse (the 1–2 deleted triangles included), counter-clockwise
+        seen from outside; the boundary edges incident to either endpoint, oriented as
+        in their triangle; the link (the shape criterion); only the counted rows.
     edge_sq_len : float
         Squared length L² of the collapsed edge (scales the boundary term).
     alpha_deg : float, default 1.0
@@ -489,33 +503,26 @@ def lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
     ValueError
         If a count is negative or exceeds the rows of its arrays.
     """
-    _check_profile(tri_a, tri_b, tri_c, n_tris, bnd_a, bnd_b, n_bnd)
-    _check_link(link, n_link)
+    _check_profile(pr)
     alpha = math.radians(alpha_deg)
-    cos2 = math.cos(alpha) ** 2
-    sin2 = math.sin(alpha) ** 2
+    cone = (math.cos(alpha) ** 2, math.sin(alpha) ** 2)
     o = np.zeros(3)
-    if n_tris > 0:
-        o[:] = tri_a[0]
-    elif n_link > 0:
-        o[:] = link[0]
-    A = np.zeros((3, 3))
-    b = np.zeros(3)
-    H = np.empty((3, 3))
-    c = np.empty(3)
+    if pr.counts[0] > 0:
+        o[:] = pr.tri_a[0]
+    elif pr.counts[2] > 0:
+        o[:] = pr.link[0]
+    s = _System(A=np.zeros((3, 3)), b=np.zeros(3), H=np.empty((3, 3)), c=np.empty(3))
     p = np.zeros(3)
 
-    n = _add_volume_preservation(A, b, np.int64(0), tri_a, tri_b, tri_c, n_tris, o, cos2, sin2)
-    if n < 3 and n_bnd > 0:
-        n = _add_boundary_preservation(A, b, n, bnd_a, bnd_b, n_bnd, o, H, c, cos2, sin2)
+    n = _add_volume_preservation(s, np.int64(0), pr, o, cone)
+    if n < 3 and pr.counts[1] > 0:
+        n = _add_boundary_preservation(s, n, pr, o, cone)
     if n < 3:
-        n = _add_volume_boundary_optimisation(A, b, n, tri_a, tri_b, tri_c, n_tris,
-                                              bnd_a, bnd_b, n_bnd, o, edge_sq_len,
-                                              volume_weight, boundary_weight, H, c,
-                                              cos2, sin2)
+        n = _add_volume_boundary_optimisation(s, n, pr, o, edge_sq_len, volume_weight,
+                                              boundary_weight, cone)
     if n < 3:
-        n = _add_shape_optimisation(A, b, n, link, n_link, o, H, c, cos2, sin2)
-    if n < 3 or not _solve3(A, b, p):
+        n = _add_shape_optimisation(s, n, pr, o, cone)
+    if n < 3 or not _solve3(s.A, s.b, p):
         p[:] = 0.0
         return p, False
     p += o
@@ -526,9 +533,8 @@ def lt_placement(tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
 
 
 @njit(cache=True, _nrt=False)
-def lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
-            edge_sq_len, volume_weight=VOLUME_WEIGHT, boundary_weight=BOUNDARY_WEIGHT,
-            shape_weight=SHAPE_WEIGHT):
+def lt_cost(p, pr, edge_sq_len, volume_weight=VOLUME_WEIGHT,
+            boundary_weight=BOUNDARY_WEIGHT, shape_weight=SHAPE_WEIGHT):
     """Lindstrom–Turk cost of collapsing the edge to ``p``.
 
     cost = w_V Σ_T V_T² + w_B L² Σ_e |A_e|² + w_S L⁴ Σ_link |p - v|², with
@@ -539,8 +545,8 @@ def lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
     ----------
     p : ndarray of shape (3,), float64
         Candidate position of the new vertex.
-    tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link, edge_sq_len
-        The edge profile, as in :func:`lt_placement`.
+    pr, edge_sq_len
+        The edge's profile and squared length, as in :func:`lt_placement`.
     volume_weight, boundary_weight, shape_weight : float, default 0.5, 0.5, 0.0
 
     Returns
@@ -548,8 +554,10 @@ def lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
     float
         The cost (length⁶ units); NaN only if the input is non-finite.
     """
-    _check_profile(tri_a, tri_b, tri_c, n_tris, bnd_a, bnd_b, n_bnd)
-    _check_link(link, n_link)
+    _check_profile(pr)
+    tri_a, tri_b, tri_c, bnd_a, bnd_b, link = pr.tri_a, pr.tri_b, pr.tri_c, pr.bnd_a, \
+        pr.bnd_b, pr.link
+    n_tris, n_bnd, n_link = pr.counts[0], pr.counts[1], pr.counts[2]
     o0, o1, o2 = p[0], p[1], p[2]  # relative to p, V_T = det[a, b, c] / 6
     volume = 0.0
     for i in range(n_tris):
@@ -577,8 +585,9 @@ def lt_cost(p, tri_a, tri_b, tri_c, bnd_a, bnd_b, n_tris, n_bnd, link, n_link,
 # -- texture coordinates in R^5 -----------------------------------------------------------
 
 @njit(cache=True, _nrt=False)
-def _add_if_alpha_compatible2(A, b, n, a0, a1, rhs, ref, cos2):
+def _add_if_alpha_compatible2(s, n, a0, a1, rhs, ref, cos2):
     """2D version of :func:`_add_if_alpha_compatible` (unknowns s, t)."""
+    A, b = s.A, s.b
     if n >= 2:
         return n
     aa = a0 * a0 + a1 * a1
@@ -597,29 +606,31 @@ def _add_if_alpha_compatible2(A, b, n, a0, a1, rhs, ref, cos2):
 
 
 @njit(cache=True)
-def _add_from_gradient2(A, b, n, H, c, ref, cos2):
+def _add_from_gradient2(s, n, ref, cos2):
     """2D version of :func:`_add_from_gradient` (principal axes of H when n = 0)."""
     if n == 0:
+        H = s.H
         theta = 0.5 * math.atan2(2.0 * H[0, 1], H[0, 0] - H[1, 1])
         cs, sn = math.cos(theta), math.sin(theta)
-        n = _add_projected_row2(A, b, n, H, c, cs, sn, ref, cos2)
-        n = _add_projected_row2(A, b, n, H, c, -sn, cs, ref, cos2)
+        n = _add_projected_row2(s, n, cs, sn, ref, cos2)
+        n = _add_projected_row2(s, n, -sn, cs, ref, cos2)
     elif n == 1:
-        n = _add_projected_row2(A, b, n, H, c, -A[0, 1], A[0, 0], ref, cos2)
+        n = _add_projected_row2(s, n, -s.A[0, 1], s.A[0, 0], ref, cos2)
     return n
 
 
 @njit(cache=True, _nrt=False)
-def _add_projected_row2(A, b, n, H, c, q0, q1, ref, cos2):
+def _add_projected_row2(s, n, q0, q1, ref, cos2):
     """Candidate (H q) · (s, t) = -q · c for a unit direction q."""
-    return _add_if_alpha_compatible2(A, b, n, H[0, 0] * q0 + H[0, 1] * q1,
+    H, c = s.H, s.c
+    return _add_if_alpha_compatible2(s, n, H[0, 0] * q0 + H[0, 1] * q1,
                                      H[1, 0] * q0 + H[1, 1] * q1,
                                      -(c[0] * q0 + c[1] * q1), ref, cos2)
 
 
 @njit(cache=True)
-def _oriented_volume_rows(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, i, uv0, kappa, D, G):
-    """Ḡ_T of Eq. 5 for triangle i into ``G`` (10, 3): row r holds the coefficients
+def _oriented_volume_rows(p, patch, i, uv0, kappa, D, G):
+    """Ḡ_T of Eq. 5 for triangle i of ``patch`` into ``G`` (10, 3): row r holds the coefficients
     (of s', t', 1) of the r-th 3x3 minor g_r of the tetrahedron (X, X_1, X_2, X_3) in R⁵,
     X = (p, κ s, κ t), s' = s - uv0[0], t' = t - uv0[1].
 
@@ -629,6 +640,7 @@ def _oriented_volume_rows(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, i, uv0, kapp
     so by multilinearity its s' coefficient is -κ times the minor with that row replaced
     by ones (likewise for t', and the s' t' term has two rows of ones and vanishes).
     """
+    tri_a, tri_b, tri_c, uv_a, uv_b, uv_c = patch
     for j in range(3):
         D[j, 0] = tri_a[i, j] - p[j]
         D[j, 1] = tri_b[i, j] - p[j]
@@ -658,8 +670,7 @@ def _oriented_volume_rows(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, i, uv0, kapp
 
 
 @njit(cache=True)
-def r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, kappa,
-                           alpha_deg=ALPHA_DEG):
+def r5_texture_coordinates(p, patch, n_tris, kappa, alpha_deg=ALPHA_DEG):
     """Texture coordinates (s, t) of the new vertex by oriented volumes in R⁵.
 
     Lindstrom & Turk 2000, §4.1.1: every triangle T of one texture patch is lifted to
@@ -675,25 +686,17 @@ def r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, kap
 
     with the constraint procedure of :func:`lt_placement` in two unknowns: the
     stationarity rows of f_Tp are kept while alpha-compatible, and if fewer than two
-    survive, f_To supplies the rest on the remaining free direction.
-
-    Reconstruction notes: in our copy of the paper the 1/18 of Eqs. 6–7 and the outer ½
-    combine to the 1/36 of Eq. 5, which is what is used here (a constant factor does not
-    move the minimiser). The sign convention of the g's does not matter: every term is
-    squared, and in Eq. 6 each g is summed with itself across triangles. On a planar
-    patch with an affine texture map and p in its plane, all lifted points lie in one
-    2-plane of R⁵, every tetrahedron is flat at the true (s, t), and the preservation
-    step alone recovers the affine map exactly (tested).
+    survive, f_To supplies the rest on the remaining free direction (the module
+    docstring has notes on the reconstruction).
 
     Parameters
     ----------
     p : ndarray of shape (3,), float64
         The new vertex (from :func:`lt_placement`).
-    tri_a, tri_b, tri_c : ndarray of shape (K, 3), float64
-        Corners of the triangles around the edge that belong to this texture patch
-        (same layout and winding as in :func:`lt_placement`).
-    uv_a, uv_b, uv_c : ndarray of shape (K, 2), float64
-        Their texture coordinates, corner by corner.
+    patch : Patch
+        The triangles around the edge that belong to this texture patch: corners
+        (K, 3), same layout and winding as in :func:`lt_placement`, and their texture
+        coordinates (K, 2), corner by corner (:data:`Patch`).
     n_tris : int
         Valid rows.
     kappa : float
@@ -714,9 +717,9 @@ def r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, kap
     ValueError
         If ``n_tris`` is negative or exceeds the rows of the arrays, or ``kappa`` <= 0.
     """
-    if n_tris < 0 or n_tris > tri_a.shape[0] or n_tris > tri_b.shape[0] \
-            or n_tris > tri_c.shape[0] or n_tris > uv_a.shape[0] \
-            or n_tris > uv_b.shape[0] or n_tris > uv_c.shape[0]:
+    if n_tris < 0 or n_tris > patch.tri_a.shape[0] or n_tris > patch.tri_b.shape[0] \
+            or n_tris > patch.tri_c.shape[0] or n_tris > patch.uv_a.shape[0] \
+            or n_tris > patch.uv_b.shape[0] or n_tris > patch.uv_c.shape[0]:
         raise ValueError("n_tris must be in [0, rows of tri_*/uv_*]")
     if not kappa > 0.0:
         raise ValueError("kappa must be positive")
@@ -725,21 +728,20 @@ def r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, kap
     if n_tris == 0:
         return uv, False
     uv0 = np.empty(2)
-    uv0[:] = uv_a[0]  # solve for uv - uv0: texture coordinates stay small
+    uv0[:] = patch.uv_a[0]  # solve for uv - uv0: texture coordinates stay small
     Gsum = np.zeros((10, 3))  # Σ_T Ḡ_T (Eq. 6)
     Ho = np.zeros((2, 2))     # Σ_T Ḡ_Tᵀ Ḡ_T, split into the (s,t) block and c (Eq. 7)
     co = np.zeros(2)
-    ref = _r5_volume_sums(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, uv0, kappa,
-                          Gsum, Ho, co)
+    ref = _r5_volume_sums(p, patch, n_tris, uv0, kappa, Gsum, Ho, co)
     Hp = np.zeros((2, 2))
     cp = np.zeros(2)
     _r5_preservation(Gsum, Hp, cp)
     A = np.zeros((2, 2))
     b = np.zeros(2)
-    n = _add_from_gradient2(A, b, np.int64(0), Hp, cp, ref * ref, cos2)
+    n = _add_from_gradient2(_System(A=A, b=b, H=Hp, c=cp), np.int64(0), ref * ref, cos2)
     if n < 2:
         ho = math.sqrt(Ho[0, 0] ** 2 + 2.0 * Ho[0, 1] ** 2 + Ho[1, 1] ** 2)
-        n = _add_from_gradient2(A, b, n, Ho, co, ho, cos2)
+        n = _add_from_gradient2(_System(A=A, b=b, H=Ho, c=co), n, ho, cos2)
     if n < 2:
         return uv, False
     det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
@@ -752,8 +754,7 @@ def r5_texture_coordinates(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, kap
 
 
 @njit(cache=True)
-def _r5_volume_sums(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, uv0, kappa, Gsum, Ho,
-                    co):
+def _r5_volume_sums(p, patch, n_tris, uv0, kappa, Gsum, Ho, co):
     """Over the patch's triangles, accumulate Σ_T Ḡ_T into ``Gsum`` (10, 3) (Eq. 6) and
     Σ_T Ḡ_Tᵀ Ḡ_T into its (s, t) block ``Ho`` (2, 2) and linear part ``co`` (2,)
     (Eq. 7). Returns Σ_T ‖Ḡ_T[:, :2]‖_F, the scale of Σ_T Ḡ_T before cancelling."""
@@ -761,8 +762,7 @@ def _r5_volume_sums(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, n_tris, uv0, kappa
     G = np.empty((10, 3))
     ref = 0.0
     for i in range(n_tris):
-        _oriented_volume_rows(p, tri_a, tri_b, tri_c, uv_a, uv_b, uv_c, i, uv0, kappa,
-                              D, G)
+        _oriented_volume_rows(p, patch, i, uv0, kappa, D, G)
         gg = 0.0
         for r in range(10):
             for k in range(3):
