@@ -19,25 +19,27 @@ from methods.engine.wedges import _mapped, _wedge_targets
 def _r5_update(u, v, p, npairs, t_edge, mesh, terms, scratch):
     """Set the new UVs of :func:`_r5_compute`."""
     uv, targets, new_uv = mesh.uv, scratch.r5.targets, scratch.r5.new_uv
-    nt = _r5_compute(u, v, p, npairs, t_edge, mesh, terms, scratch)
+    surface = (mesh.P, mesh.F, mesh.FW, uv, mesh.falive, mesh.vhead, mesh.cnext)
+    nt = _r5_compute(u, v, p, t_edge, surface, terms.face_kappa,
+                     (scratch.wmap_from, scratch.wmap_to, npairs), scratch.r5)
     for ti in range(nt):
         uv[targets[ti], 0] = new_uv[ti, 0]
         uv[targets[ti], 1] = new_uv[ti, 1]
 
 
 @njit(cache=True)
-def _r5_compute(u, v, p, npairs, t_edge, mesh, terms, scratch):
+def _r5_compute(u, v, p, t_edge, surface, face_kappa, pairs, r5):
     """New UVs of every wedge around the vertex merged by collapsing u into v at p
-    (``npairs`` wedge pairs in ``scratch.wmap_from``/``wmap_to``, ``t_edge`` the edge
-    parameter of p) by Lindstrom & Turk 2000's R^5 oriented volumes (§4.1.1), each from
-    the triangles of its own texture patch around the edge (the removed ones included);
-    a wedge whose patch profile is degenerate falls back to interpolation along the
-    edge. Fills the targets and new UVs of ``scratch.r5``
+    (``t_edge`` the edge parameter of p) by Lindstrom & Turk 2000's R^5 oriented volumes
+    (§4.1.1), each from the triangles of its own texture patch around the edge (the
+    removed ones included); a wedge whose patch profile is degenerate falls back to
+    interpolation along the edge. ``surface`` is the mesh's (P, F, FW, uv, falive,
+    vhead, cnext), ``face_kappa`` each face's κ, ``pairs`` the merged wedge pairs
+    (wmap_from, wmap_to, npairs). Fills the targets and new UVs of ``r5``
     (methods.engine.state.R5Scratch); returns how many."""
-    P, F, FW, falive, vhead, cnext, uv = (mesh.P, mesh.F, mesh.FW, mesh.falive, mesh.vhead,
-                                          mesh.cnext, mesh.uv)
-    face_kappa, wmap_from, wmap_to = terms.face_kappa, scratch.wmap_from, scratch.wmap_to
-    patch, targets, new_uv = scratch.r5.patch, scratch.r5.targets, scratch.r5.new_uv
+    P, F, FW, uv, falive, vhead, cnext = surface
+    wmap_from, wmap_to, npairs = pairs
+    patch, targets, new_uv = r5.patch, r5.targets, r5.new_uv
     tri_a, tri_b, tri_c, uv_a, uv_b, uv_c = patch
     cap = tri_a.shape[0]
     nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)

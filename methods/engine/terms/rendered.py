@@ -92,7 +92,8 @@ def _image_term(u, v, p, mesh, rules, terms, scratch, images, bound):
         npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wfrom, wto)
         t_edge = _edge_parameter(u, v, p, P)
         if rules.use_r5:
-            nt = _r5_compute(u, v, p, npairs, t_edge, mesh, terms, scratch)
+            nt = _r5_compute(u, v, p, t_edge, (P, F, FW, uv, falive, vhead, cnext),
+                             terms.face_kappa, (wfrom, wto, npairs), scratch.r5)
         else:  # merged wedges interpolated along the edge, as _collapse does
             for i in range(npairs):
                 targets[i] = wto[i]
