@@ -437,8 +437,8 @@ def test_wedge_pairs_are_one_per_distinct_pair():
     edges = {tuple(sorted(e)) for f in a.F for e in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))}
     seen = set()
     for u, v in edges:
-        n = _wedge_pairs(u, v, a.F, a.FW, a.vhead, a.cnext, a.falive, s.efaces, s.wmap_from,
-                         s.wmap_to)
+        n = _wedge_pairs(u, v, (a.F, a.FW, a.vhead, a.cnext, a.falive), s.efaces,
+                         s.wmap_from, s.wmap_to)
         pairs = set(zip(s.wmap_from[:n].tolist(), s.wmap_to[:n].tolist()))
         assert len(pairs) == n
         kinds = (int(min(ones[u], ones[v])), int(max(ones[u], ones[v])))

@@ -49,9 +49,9 @@ def test_the_losing_way_stops_early_with_the_same_verdict(monkeypatch):
     P = mesh.P
     stopped = 0
     for a, b in edges:
-        full_a = rendered._view_cost(b, a, P[a], mesh, rules, terms, scratch, images, np.inf)
-        full_b = rendered._view_cost(a, b, P[b], mesh, rules, terms, scratch, images, np.inf)
-        ca, cb = rendered._both_ways(a, b, 0.0, 0.0, mesh, rules, terms, scratch, images)
+        full_a = rendered._view_cost((b, a, P[a]), mesh, rules, terms, scratch, images, np.inf)
+        full_b = rendered._view_cost((a, b, P[b]), mesh, rules, terms, scratch, images, np.inf)
+        ca, cb = rendered._both_ways(a, b, (0.0, 0.0), mesh, rules, terms, scratch, images)
         assert (ca < cb) == (full_a < full_b)
         assert min(ca, cb) == min(full_a, full_b)
         for got, full in ((ca, full_a), (cb, full_b)):

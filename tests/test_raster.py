@@ -140,11 +140,11 @@ def test_a_row_ends_where_it_leaves_the_triangle_exactly(id_type):
         z = rng.uniform(-0.9, 0.9, 3)
         t[0, T_X:T_X + 3], t[0, T_Y:T_Y + 3], t[0, T_Z:T_Z + 3] = xy[:, 0], xy[:, 1], z
         t[0, T_W:T_W + 3] = 1.0
-        scan_row(t, 0, fid, 0, SIZE - 1, 0, SIZE - 1, False, depth, ids)
+        scan_row(t, 0, fid, (0, SIZE - 1, 0, SIZE - 1), False, depth, ids)
         _every_centre(xy[:, 0], xy[:, 1], z, 0, SIZE - 1, 0, SIZE - 1, want_depth,
                       want_ids, fid)
         alone, want = np.full((SIZE, SIZE), -1, id_type), np.full((SIZE, SIZE), -1, id_type)
-        scan_row(t, 0, fid, 0, SIZE - 1, 0, SIZE - 1, False, np.full((SIZE, SIZE), np.inf),
+        scan_row(t, 0, fid, (0, SIZE - 1, 0, SIZE - 1), False, np.full((SIZE, SIZE), np.inf),
                  alone)
         _every_centre(xy[:, 0], xy[:, 1], z, 0, SIZE - 1, 0, SIZE - 1,
                       np.full((SIZE, SIZE), np.inf), want, fid)
@@ -286,7 +286,7 @@ def _assert_draws_nothing_if_behind(t, far):
     depth = np.full((48, 48), far)
     ids = np.full((48, 48), 10**9, np.int64)
     if behind(t, 0, far):
-        scan_row(t, 0, 1, 0, 47, 0, 47, False, depth, ids)
+        scan_row(t, 0, 1, (0, 47, 0, 47), False, depth, ids)
         assert (ids == 10**9).all() and (depth == far).all()
 
 
@@ -345,7 +345,7 @@ def test_the_vector_pass_gives_every_centres_test(xs, ys, zs, c_lo, r_lo, extra,
     ids = rng.integers(0, 4, (height, width)).astype(np.int32)
     want_depth, want_ids = depth.copy(), ids.copy()
     t = _row(list(xs), list(ys), list(zs))
-    scan_row(t, 0, 2, c_lo, c_hi, r_lo, r_hi, False, depth, ids)
+    scan_row(t, 0, 2, (c_lo, c_hi, r_lo, r_hi), False, depth, ids)
     _every_centre(xs, ys, zs, c_lo, c_hi, r_lo, r_hi, want_depth, want_ids, 2)
     assert np.array_equal(ids, want_ids)
     assert np.array_equal(depth, want_depth)
@@ -374,7 +374,7 @@ def test_a_probe_says_whether_the_scan_changes_a_pixel(xs, ys, zs, c_lo, r_lo, e
     _every_centre(xs, ys, zs, c_lo, c_hi, r_lo, r_hi, want_depth, want_ids, 2)
     changed = not (np.array_equal(ids, want_ids) and np.array_equal(depth, want_depth))
     before_depth, before_ids = depth.copy(), ids.copy()
-    assert wins_any(_row(list(xs), list(ys), list(zs)), 0, 2, c_lo, c_hi, r_lo, r_hi, False,
+    assert wins_any(_row(list(xs), list(ys), list(zs)), 0, 2, (c_lo, c_hi, r_lo, r_hi), False,
                     depth, ids) == changed
     assert np.array_equal(depth, before_depth) and np.array_equal(ids, before_ids)
 

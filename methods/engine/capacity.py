@@ -49,7 +49,7 @@ def merged_wedges(a, b, mesh, scratch):
     the rare large fans only (it allocates)."""
     F, FW, vhead, cnext, falive = mesh.F, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive
     gfrom, gto = scratch.wq.gfrom, scratch.wq.gto
-    npairs = _wedge_pairs(a, b, F, FW, vhead, cnext, falive, scratch.efaces, gfrom, gto)
+    npairs = _wedge_pairs(a, b, (F, FW, vhead, cnext, falive), scratch.efaces, gfrom, gto)
     n = live_corners(a, vhead, cnext, falive) + live_corners(b, vhead, cnext, falive)
     wedges = np.empty(n, np.int64)
     k = 0

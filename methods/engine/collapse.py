@@ -34,12 +34,12 @@ def _collapse(u, v, p, mesh, rules, terms, scratch, log_changed, n_changed, kind
         mesh.wedge_vertex)
     efaces, wmap_from, wmap_to = scratch.efaces, scratch.wmap_from, scratch.wmap_to
     # Pair the wedges of u and v across each removed face (same side of the edge).
-    npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to)
-    _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, kinds)
+    fan = (F, FW, vhead, cnext, falive)
+    npairs = _wedge_pairs(u, v, fan, efaces, wmap_from, wmap_to)
+    _count_kinds(u, v, fan, (wmap_from, wmap_to, npairs), kinds)
     # New texture coordinates of the merged wedges (before the topology changes).
     _merge_uvs(u, v, p, npairs, mesh, rules, terms, scratch)
-    nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs,
-                        scratch.wq.targets)
+    nt = _wedge_targets(u, v, fan, (wmap_from, wmap_to, npairs), scratch.wq.targets)
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     for i in range(k):
         falive[efaces[i]] = False
@@ -80,9 +80,8 @@ def _merge_uvs(u, v, p, npairs, mesh, rules, terms, scratch):
     ``scratch.wmap_from``/``wmap_to``): Garland & Heckbert 1998's minimiser of the summed
     wedge quadrics, Lindstrom & Turk 2000's R^5 volumes, or interpolation along the edge;
     then González et al. 2008's correction (``rules.uv_fix``) where it applies."""
-    P, F, FW, falive, vhead, cnext, wedge_vertex, uv, WQ = (
-        mesh.P, mesh.F, mesh.FW, mesh.falive, mesh.vhead, mesh.cnext, mesh.wedge_vertex,
-        mesh.uv, mesh.WQ)
+    P, F, FW, falive, vhead, cnext, uv, WQ = (mesh.P, mesh.F, mesh.FW, mesh.falive,
+                                              mesh.vhead, mesh.cnext, mesh.uv, mesh.WQ)
     has_uv, use_r5, uv_fix = rules.has_uv, rules.use_r5, rules.uv_fix
     wmap_from, wmap_to = scratch.wmap_from, scratch.wmap_to
     n_fix = 0
@@ -91,12 +90,12 @@ def _merge_uvs(u, v, p, npairs, mesh, rules, terms, scratch):
     fix_uv = np.empty((cap, 2))
     fix_m = np.zeros(cap, np.int64)
     if has_uv and uv_fix:
-        n_fix = _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex,
-                               wmap_from, wmap_to, npairs, fix_t, fix_uv, fix_m)
+        n_fix = _uv_correction(u, v, p, mesh, (wmap_from, wmap_to, npairs),
+                               (fix_t, fix_uv, fix_m))
     t = _edge_parameter(u, v, p, P)  # for merged attributes
     if has_uv and WQ.shape[0] > 1:  # Garland-Heckbert 1998: merge, then minimise UVs
         targets = scratch.wq.targets
-        nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs,
+        nt = _wedge_targets(u, v, (F, FW, vhead, cnext, falive), (wmap_from, wmap_to, npairs),
                             targets)
         for i in range(npairs):
             for j in range(WEDGE_QUADRIC_SIZE):

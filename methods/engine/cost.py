@@ -71,16 +71,17 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
         _gather_profile(a, b, mesh, scratch)
     canny = 0.0
     if weights.canny != 0.0:  # depends on the edge only, not on where the vertex goes
-        canny = weights.canny * _canny_penalty(
-            a, b, P, mesh.F, mesh.FW, mesh.uv, terms.borders, mesh.vhead, mesh.cnext,
-            mesh.falive, scratch.efaces, terms.canny_per_area, scratch.no_record)
+        surface = (P, mesh.F, mesh.FW, mesh.uv, mesh.falive, mesh.vhead, mesh.cnext)
+        canny = weights.canny * _canny_penalty(a, b, surface, terms.borders,
+                                               terms.canny_per_area, scratch.efaces,
+                                               scratch.no_record)
     if forced == -1 and rules.placement == PLACE_ENDPOINTS:
         cost, keep = _cheaper_end(a, b, l2, mesh, rules, terms, scratch, images)
         return cost + canny, keep
     keep = _place(a, b, forced, l2, mesh, rules, scratch)
     cost = _cost_at(out_p, scratch.qsum, weights, scratch.profile, l2) + canny
     if renders(weights):
-        cost += _view_cost(a if keep == b else b, keep, out_p, mesh, rules, terms, scratch,
+        cost += _view_cost((a if keep == b else b, keep, out_p), mesh, rules, terms, scratch,
                            images, np.inf)
     return cost, keep
 
@@ -124,7 +125,7 @@ def _cheaper_end(a, b, l2, mesh, rules, terms, scratch, images):
     ca = _cost_at(P[a], qsum, weights, pr, l2)
     cb = _cost_at(P[b], qsum, weights, pr, l2)
     if renders(weights):
-        ca, cb = _both_ways(a, b, ca, cb, mesh, rules, terms, scratch, images)
+        ca, cb = _both_ways(a, b, (ca, cb), mesh, rules, terms, scratch, images)
     keep = a if ca < cb else b
     scratch.p[:] = P[keep]
     return min(ca, cb), keep

@@ -51,9 +51,10 @@ def corner_wedges(F, FW, f, a, b):
 
 
 @njit(cache=True, _nrt=False)
-def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
+def _wedge_pairs(u, v, fan, efaces, wmap_from, wmap_to):
     """The distinct pairs (wedge of u -> wedge of v) across the faces of edge (u, v):
-    each side of the edge merges its own two wedges. Returns the number of pairs.
+    each side of the edge merges its own two wedges, into ``wmap_from``/``wmap_to``.
+    Returns the number of pairs. ``fan`` is the mesh's (F, FW, vhead, cnext, falive).
 
     Off a seam both faces of the edge use the same two wedges, so they give one pair,
     not two: every caller adds a pair's wedge quadric (and interpolates its UV) once per
@@ -61,6 +62,7 @@ def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
     every collapse, a wedge quadric grows geometrically along a chain of collapses
     until rounding in its reduction over (u, v) swamps the geometry (costs of -1e14 on
     a textured box, whose corners then go first)."""
+    F, FW, vhead, cnext, falive = fan
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     npairs = 0
     for i in range(min(k, efaces.shape[0])):
@@ -79,8 +81,12 @@ def _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wmap_from, wmap_to):
 
 
 @njit(cache=True, _nrt=False)
-def _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets):
-    """The distinct wedges the merged vertex will have (after pairing); returns count."""
+def _wedge_targets(u, v, fan, pairs, targets):
+    """The distinct wedges the merged vertex of (u, v) will have after pairing
+    (``pairs``: (wmap_from, wmap_to, npairs)), into ``targets``; returns their count.
+    ``fan`` is the mesh's (F, FW, vhead, cnext, falive)."""
+    _, FW, vhead, cnext, falive = fan
+    wmap_from, wmap_to, npairs = pairs
     nt = 0
     for side in range(2):
         x = u if side == 0 else v
@@ -151,17 +157,21 @@ def barycentric_uv(q, p1, p2, p3, t1, t2, t3, out):
 
 
 @njit(cache=True)
-def _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex, wmap_from,
-                   wmap_to, npairs, targets, new_uv, moved_t):
+def _uv_correction(u, v, p, mesh, pairs, fix):
     """New UVs of the merged vertex's wedges by :func:`barycentric_uv` (González et al.
     2008, §3), before the collapse changes anything. A wedge whose vertex does not move
     (the kept end of a half-edge collapse) keeps its UV. For one that moves, the paper
     leaves open which "modified triangle" gives the new UV; we take, among the live
     triangles around the edge that use this wedge (or a wedge merging into it), the one
     in which the new position lies deepest (largest smallest barycentric coordinate), so
-    a point inside one of them gets that triangle's exact UV. Fills ``targets``,
-    ``new_uv`` and ``moved_t`` (1: corrected); returns how many targets."""
-    nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)
+    a point inside one of them gets that triangle's exact UV. ``pairs`` is (wmap_from,
+    wmap_to, npairs). Fills ``fix`` = (targets, new_uv, moved_t) (1: corrected); returns
+    how many targets."""
+    P, F, FW, falive, vhead, cnext, uv, wedge_vertex = (
+        mesh.P, mesh.F, mesh.FW, mesh.falive, mesh.vhead, mesh.cnext, mesh.uv, mesh.wedge_vertex)
+    wmap_from, wmap_to, npairs = pairs
+    targets, new_uv, moved_t = fix
+    nt = _wedge_targets(u, v, (F, FW, vhead, cnext, falive), pairs, targets)
     res = np.empty(2)
     for ti in range(nt):
         t = targets[ti]
@@ -185,13 +195,16 @@ def _uv_correction(u, v, p, P, F, FW, falive, vhead, cnext, uv, wedge_vertex, wm
 
 
 @njit(cache=True)
-def _count_kinds(u, v, F, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, kinds):
+def _count_kinds(u, v, fan, pairs, kinds):
     """González et al. 2008, Algorithm 2, in welded terms, for collapsing u into v:
     kinds[KIND_TWIN] += 1 when the edge's faces pair two different wedge pairs (the real
     edge and its *twin* at a seam or a sub-mesh joint collapse together);
     kinds[KIND_STRANDED] += 1 and kinds[KIND_STRANDED_WEDGES] += (their number) when
     wedges of u have no partner at v (the paper's disconnected vertices, which a *fake*
-    edge or a translation brings to v)."""
+    edge or a translation brings to v). ``fan`` is the mesh's (F, FW, vhead, cnext,
+    falive), ``pairs`` (wmap_from, wmap_to, npairs)."""
+    F, FW, vhead, cnext, falive = fan
+    wmap_from, wmap_to, npairs = pairs
     distinct = 0
     for i in range(npairs):
         seen = False

@@ -177,16 +177,17 @@ def _fails(px, py, xa, ya, dx, dy, q):
 
 
 @njit(cache=True, inline="always")
-def _row_start(py, cmin, cmax, xa0, ya0, dx0, dy0, q0, s0, xa1, ya1, dx1, dy1, q1, s1,
-               xa2, ya2, dx2, dy2, q2, s2):
+def _row_start(py, cmin, cmax, edges, slopes):
     """The column where :func:`scan_row` starts row ``py``: every centre left of it is
-    outside the triangle. ``s_i`` is edge i's dx/dy where its function grows along the
-    row (dy < 0), else NaN."""
+    outside the triangle. ``edges`` are :func:`_scan`'s (dx, dy, q, xa, ya) of the
+    three edges, ``slopes`` their dx/dy where their function grows along the row
+    (dy < 0), else NaN."""
     # the rightmost crossing of the row by such an edge, with that edge
     best, xa, ya, dx, dy, q = -np.inf, 0.0, 0.0, 0.0, 0.0, 0.0
-    for s, xe, ye, dxe, dye, qe in ((s0, xa0, ya0, dx0, dy0, q0),
-                                    (s1, xa1, ya1, dx1, dy1, q1),
-                                    (s2, xa2, ya2, dx2, dy2, q2)):
+    (dx0, dy0, q0, xa0, ya0), (dx1, dy1, q1, xa1, ya1), (dx2, dy2, q2, xa2, ya2) = edges
+    for s, xe, ye, dxe, dye, qe in ((slopes[0], xa0, ya0, dx0, dy0, q0),
+                                    (slopes[1], xa1, ya1, dx1, dy1, q1),
+                                    (slopes[2], xa2, ya2, dx2, dy2, q2)):
         if s == s:  # not NaN
             x = xe + s * (py - ye)  # where the edge crosses the row
             if x > best:
@@ -318,9 +319,10 @@ _lanes_probe = _lane_pass(False)
 
 
 @njit(cache=True, _nrt=False)
-def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=None):
+def scan_row(t, k, fid, rect, cull_front, depth, ids, spans=None):
     """Z-buffer row ``k`` of table ``t``, a face with id ``fid``, into the region
-    [r_lo, r_hi] x [c_lo, c_hi]; with ``spans`` (rows, 2), only columns
+    ``rect`` = (c_lo, c_hi, r_lo, r_hi), rows r_lo..r_hi and columns c_lo..c_hi
+    (inclusive); with ``spans`` (rows, 2), only columns
     ``spans[r, 0]..spans[r, 1]`` of each row ``r`` (none where the first is larger).
 
     ``depth`` and ``ids`` are indexed from (r_lo, c_lo). A pixel goes to the face with
@@ -328,21 +330,22 @@ def scan_row(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans=No
     faces in increasing id with a ``<`` depth test gives (``GL_LESS``), whatever order
     the faces are scanned in. Returns the number of pixel centres tested.
     """
-    return _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, False)
+    return _scan(t, k, fid, rect, cull_front, (depth, ids), spans, False)
 
 
 @njit(cache=True, _nrt=False)
-def wins_any(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids):
+def wins_any(t, k, fid, rect, cull_front, depth, ids):
     """Whether :func:`scan_row` of the same arguments would change any pixel of
     ``depth`` and ``ids``, which it leaves as they are: it stops at the first pixel
     the face wins."""
-    return _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, None, True) != 0
+    return _scan(t, k, fid, rect, cull_front, (depth, ids), None, True) != 0
 
 
 @njit(cache=True, inline="always")
-def _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, probe):
-    """:func:`scan_row`; with ``probe``, :func:`wins_any` (1 at the first pixel won,
-    else 0)."""
+def _scan(t, k, fid, rect, cull_front, zbuffer, spans, probe):
+    """:func:`scan_row` (``zbuffer`` its (depth, ids)); with ``probe``,
+    :func:`wins_any` (1 at the first pixel won, else 0)."""
+    (c_lo, c_hi, r_lo, r_hi), (depth, ids) = rect, zbuffer
     drawn, tri, area = _facing(t, k, cull_front)
     if not drawn:
         return 0
@@ -388,8 +391,7 @@ def _scan(t, k, fid, c_lo, c_hi, r_lo, r_hi, cull_front, depth, ids, spans, prob
         py = r + 0.5
         start = lo
         if skip:
-            start = max(lo, _row_start(py, cmin, cmax, x1, y1, dx0, dy0, q0, s0, x2, y2,
-                                       dx1, dy1, q1, s1, x0, y0, dx2, dy2, q2, s2))
+            start = max(lo, _row_start(py, cmin, cmax, edges, (s0, s1, s2)))
         if vector:
             i = r - r_lo
             won = _lanes_row((dbase + i * depth.strides[0], gbase + i * ids.strides[0]),
@@ -588,9 +590,10 @@ def shade_pixel(t, k, px, py, eye, shading, texture):
 
 
 @njit(cache=True)
-def shade_region(t, ids, c_lo, c_hi, r_lo, r_hi, eye, shading, texture, background, out):
-    """Luminance of every pixel of the region from ``ids`` (row of ``t`` or -1) into
-    ``out`` (indexed from (r_lo, c_lo), like ``ids``)."""
+def shade_region(t, ids, rect, eye, shading, texture, background, out):
+    """Luminance of every pixel of the region ``rect`` = (c_lo, c_hi, r_lo, r_hi) from
+    ``ids`` (row of ``t`` or -1) into ``out`` (indexed from (r_lo, c_lo), like ``ids``)."""
+    c_lo, c_hi, r_lo, r_hi = rect
     for r in range(r_lo, r_hi + 1):
         py = r + 0.5
         for c in range(c_lo, c_hi + 1):
@@ -633,10 +636,12 @@ def _luma(r, g, b, lit, spec):
 
 
 @njit(cache=True)
-def _fill_rows(t, s, positions, faces, face_normals, light, uv, gouraud, textured, shade):
-    """Table rows of all ``faces`` in one view from per-vertex arrays: screen ``s``
-    (n, 4), ``light`` (n, 4) (gouraud) and ``uv`` (n, 2) (textured); screen coordinates
-    only unless ``shade``."""
+def _fill_rows(t, s, surface, light, shading, shade):
+    """Table rows of all faces of ``surface`` (positions, faces, face normals, uv) in
+    one view from per-vertex arrays: screen ``s`` (n, 4), ``light`` (n, 4) (gouraud) and
+    uv (n, 2) (textured); screen coordinates only unless ``shade``."""
+    positions, faces, face_normals, uv = surface
+    gouraud, textured = shading.gouraud, shading.textured
     for f in range(faces.shape[0]):
         for j in range(3):
             i = faces[f, j]
@@ -660,28 +665,31 @@ def _fill_rows(t, s, positions, faces, face_normals, light, uv, gouraud, texture
 
 
 @njit(cache=True, parallel=True)
-def _render_kernel(screen, positions, faces, face_normals, light, uv, texture, eyes, shading,
-                   cull_front, width, height, background, shade):
+def _render_kernel(views, surface, texture, shading, size, background, shade):
     """Face index per pixel (-1 empty) and, with ``shade``, luminance, for every view.
 
-    screen : (V, n, 4); faces : (m, 3) int32; light : (V, n, 4) (gouraud only);
-    cull_front : (V,) bool. Views run in parallel; each is independent, so the result
-    does not depend on the number of threads.
+    views : (screen (V, n, 4), light (V, n, 4) (gouraud only), eyes (V, 3), cull_front
+    (V,) bool); surface : (positions (n, 3), faces (m, 3) int32, face normals (m, 3),
+    uv (n, 2)); size : (width, height). Views run in parallel; each is independent, so
+    the result does not depend on the number of threads.
     """
+    screen, light, eyes, cull_front = views
+    faces, (width, height) = surface[1], size
     n_views, m = screen.shape[0], faces.shape[0]
-    gouraud, textured = shading.gouraud, shading.textured
+    gouraud = shading.gouraud
     ids = np.full((n_views, height, width), -1, np.int32)
     lum = np.full((n_views if shade else 0, height, width), background)
     for v in prange(n_views):
         t = np.empty((m, ROW))
-        _fill_rows(t, screen[v], positions, faces, face_normals,
-                   light[v] if gouraud and shade else light[0], uv, gouraud, textured, shade)
+        _fill_rows(t, screen[v], surface, light[v] if gouraud and shade else light[0], shading,
+                   shade)
         depth = np.full((height, width), np.inf)
         for k in range(m):
-            scan_row(t, k, k, ZERO, width - 1, ZERO, height - 1, cull_front[v], depth, ids[v])
+            scan_row(t, k, k, (ZERO, width - 1, ZERO, height - 1), cull_front[v], depth,
+                     ids[v])
         if shade:
-            shade_region(t, ids[v], 0, width - 1, 0, height - 1, eyes[v], shading, texture,
-                         background, lum[v])
+            shade_region(t, ids[v], (ZERO, width - 1, ZERO, height - 1), eyes[v], shading,
+                         texture, background, lum[v])
     return ids, lum
 
 
@@ -731,9 +739,9 @@ def _render(mesh, cameras, width, height, shading, specular, constants, cull_fro
         light = (np.zeros((1, 1, 4)) if normals is None else
                  vertex_light(positions, normals, eyes[views], shading.ambient,
                               shading.diffuse, shading.ks, shading.shininess, specular))
-        ids[views], chunk = _render_kernel(screen, positions, faces, face_n, light, uv,
-                                           texture, eyes[views], shading, cull[views], width,
-                                           height, float(BACKGROUND), shade)
+        ids[views], chunk = _render_kernel((screen, light, eyes[views], cull[views]),
+                                           (positions, faces, face_n, uv), texture, shading,
+                                           (width, height), float(BACKGROUND), shade)
         if shade:
             lum[views] = chunk
     return ids, lum

@@ -244,9 +244,9 @@ def _scan_changed(scene, h, rect, change, far):
             continue
         cand[n] = f
         rowof[f] = n
-        fill_screen(t, n, f, h, u, v, sp, img.S, F)
+        fill_screen((t, n, f, h), (u, v, sp), img.S, F)
         if not behind(t, n, far):
-            scan_row(t, n, f, c0, c1, r0, r1, img.cull[h], iws.depth, iws.ids)
+            scan_row(t, n, f, (c0, c1, r0, r1), img.cull[h], iws.depth, iws.ids)
         n += 1
     return n
 
@@ -297,17 +297,17 @@ def _fill_holes(scene, h, rect, change, nh, n):
     hole = iws.box
     hole[0], hole[1], hole[2], hole[3] = oc0, oc1, or0, or1
     g0 = cycles()
-    n2 = _gather(scene.tiles, h, hole, img.fbox, scene.falive, mark, otick, cand, n, TILE, nx,
-                 hmark, otick)
+    n2 = _gather(scene.tiles, h, hole, (img.fbox, scene.falive), (mark, otick, hmark, otick),
+                 cand, n, (TILE, nx))
     img.stats[STAT_GATHER_CYCLES] += cycles() - g0
     hole_depth = depth[or0 - r0:, oc0 - c0:]  # views indexed from the open holes' corner
     hole_ids = ids[or0 - r0:, oc0 - c0:]
     for k in range(n, n2):
         f = cand[k]
         rowof[f] = k
-        fill_screen(t, k, f, h, NO_VERTEX, NO_VERTEX, sp, img.S, F)
+        fill_screen((t, k, f, h), (NO_VERTEX, NO_VERTEX, sp), img.S, F)
         if not behind(t, k, far):
-            scan_row(t, k, f, oc0, oc1, or0, or1, img.cull[h], hole_depth, hole_ids, spans)
+            scan_row(t, k, f, (oc0, oc1, or0, or1), img.cull[h], hole_depth, hole_ids, spans)
     return n2
 
 
@@ -355,12 +355,13 @@ def _shade_changes(scene, h, rect, change, n, commit):
                     k = n
                     cand[k] = f
                     rowof[f] = k
-                    fill_screen(t, k, f, h, u, v, sp, S, F)
+                    fill_screen((t, k, f, h), (u, v, sp), S, F)
                     n += 1
                 if rowmark[k] != filled:
-                    fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, iws.vslot,
-                                 iws.ov_light, iws.wslot, iws.new_uv, scene.wfrom, scene.wto,
-                                 change.npairs, shading)
+                    fill_shading((t, k, f, h), (u, v, p), (P, F, FW, uv),
+                                 (L, iws.vslot, iws.ov_light),
+                                 (iws.wslot, iws.new_uv, scene.wfrom, scene.wto, change.npairs),
+                                 shading)
                     rowmark[k] = filled
                 y = shade_pixel(t, k, c + 0.5, r + 0.5, eyes[h], shading, texture)
             shaded += 1
@@ -458,7 +459,7 @@ def _affected(u, v, p, P, topology, img, iws):
                     nr = _add_to_ring(x, iws.ring, vslot, nr)
         for i in range(nr):
             x = iws.ring[i]
-            vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, iws.buf, iws.n3)
+            vertex_normal(x, (u, v, p), (P, F, vhead, cnext, falive), iws.buf, iws.n3)
             for h in range(img.Y.shape[0]):
                 _light(_pos(x, u, v, p, P, 0), _pos(x, u, v, p, P, 1), _pos(x, u, v, p, P, 2),
                        iws.n3, img.eyes[h], img.shading, iws.ov_light[h, i], 0)
@@ -542,7 +543,7 @@ def commit_geometry(scene, v, stays, held, removed, n_removed, corner_lists, val
             _grow(rects[h], fbox[h, aff[i]])
         for i in range(na):
             f = aff[i]
-            fill_screen(t, ZERO, f, h, NO_VERTEX, NO_VERTEX, sp, S, F)
+            fill_screen((t, ZERO, f, h), (NO_VERTEX, NO_VERTEX, sp), S, F)
             row_box(t, ZERO, width, height, fbox[h, f])
             _grow(rects[h], fbox[h, f])
             if ok:
@@ -569,7 +570,8 @@ def _relight(nall, removed, n_removed, P, topology, valive, img, iws):
     for i in range(nr):
         x = ring[i]
         vslot[x] = -1
-        vertex_normal(x, NO_VERTEX, NO_VERTEX, P[x], P, F, vhead, cnext, falive, iws.buf, vn[x])
+        vertex_normal(x, (NO_VERTEX, NO_VERTEX, P[x]), (P, F, vhead, cnext, falive), iws.buf,
+                      vn[x])
         for h in range(img.Y.shape[0]):
             _light(P[x, 0], P[x, 1], P[x, 2], vn[x], img.eyes[h], img.shading, img.L[h, x], 0)
         ns = _faces_around(x, vhead, cnext, falive, iws.mark, iws.tick[0], iws.aff, ns)
@@ -610,7 +612,7 @@ def _cost_view(scene, h, change):
     for i in range(change.na):
         f = aff[i]
         if not removed_by(F, f, u, v):
-            fill_screen(t, ZERO, f, h, u, v, sp, S, F)
+            fill_screen((t, ZERO, f, h), (u, v, sp), S, F)
             row_box(t, ZERO, width, height, box)
             _grow(rect, box)
     if rect[0] > rect[1] or rect[2] > rect[3]:
@@ -639,8 +641,8 @@ def _unchanged(scene, h, rect, change):
         f = aff[i]
         if removed_by(F, f, u, v):
             continue
-        fill_screen(t, ZERO, f, h, u, v, sp, img.S, F)
-        if wins_any(t, ZERO, f, c0, c1, r0, r1, img.cull[h], depth, ids):
+        fill_screen((t, ZERO, f, h), (u, v, sp), img.S, F)
+        if wins_any(t, ZERO, f, (c0, c1, r0, r1), img.cull[h], depth, ids):
             return False
     return True
 

@@ -88,9 +88,12 @@ def _pos(x, u, v, p, P, d):
 
 
 @njit(cache=True)
-def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
-    """Unit area-weighted normal of vertex ``x`` after collapsing ``u`` into ``v`` at
-    ``p`` (``u = -1``: the current mesh). Faces are summed in increasing index."""
+def vertex_normal(x, move, surface, buf, out):
+    """Unit area-weighted normal of vertex ``x`` after ``move`` = (u, v, p), collapsing
+    ``u`` into ``v`` at ``p`` (``u = -1``: the current mesh), on ``surface`` = (P, F,
+    vhead, cnext, falive). Faces are summed in increasing index."""
+    u, v, p = move
+    P, F, vhead, cnext, falive = surface
     n = ZERO
     for side in range(2):
         y = np.int64(x) if side == 0 else np.int64(u)
@@ -125,9 +128,12 @@ def vertex_normal(x, u, v, p, P, F, vhead, cnext, falive, buf, out):
 
 
 @njit(cache=True)
-def fill_screen(t, k, f, h, u, v, sp, S, F):
-    """Screen columns of row ``k``: face ``f`` in view ``h`` after collapsing ``u`` into
-    ``v`` (whose screen position becomes ``sp``); ``u = -1`` for the current mesh."""
+def fill_screen(row, move, S, F):
+    """Screen columns of ``row`` = (t, k, f, h), row ``k`` of table ``t``: face ``f`` in
+    view ``h`` after ``move`` = (u, v, sp), collapsing ``u`` into ``v`` (whose screen
+    position becomes ``sp``); ``u = -1`` for the current mesh."""
+    t, k, f, h = row
+    u, v, sp = move
     for j in range(3):
         x = F[f, j]
         if u >= 0 and (x == u or x == v):
@@ -139,11 +145,18 @@ def fill_screen(t, k, f, h, u, v, sp, S, F):
 
 
 @njit(cache=True)
-def fill_shading(t, k, f, h, u, v, p, P, F, FW, uv, L, vslot, ov_light, wslot, new_uv,
-                 wfrom, wto, npairs, shading):
-    """Shading columns of row ``k`` (as :func:`fill_screen`): corner positions and the
-    face normal (flat), corner lighting (gouraud; the new lighting of the vertices in
-    ``vslot``), texture coordinates (the new ones of the wedges in ``wslot``)."""
+def fill_shading(row, move, surface, light, wedges, shading):
+    """Shading columns of ``row`` after ``move`` = (u, v, p) (as :func:`fill_screen`):
+    corner positions and the face normal (flat), corner lighting (gouraud; ``light`` =
+    (L, vslot, ov_light): the new lighting of the vertices in ``vslot``), texture
+    coordinates (``wedges`` = (wslot, new_uv, wfrom, wto, npairs): the new ones of the
+    wedges in ``wslot``, u's merged wedges renamed by the pairs) on ``surface`` = (P,
+    F, FW, uv)."""
+    t, k, f, h = row
+    u, v, p = move
+    P, F, FW, uv = surface
+    L, vslot, ov_light = light
+    wslot, new_uv, wfrom, wto, npairs = wedges
     gouraud, textured = shading.gouraud, shading.textured
     for j in range(3):
         x = F[f, j]

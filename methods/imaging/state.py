@@ -208,7 +208,8 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
             for c in corners(i, vhead, cnext):
                 n_faces += 1
             buf = np.empty(max(NORMAL_FACES_CAP, n_faces), np.int64)
-            vertex_normal(i, NO_VERTEX, NO_VERTEX, P[i], P, F, vhead, cnext, falive, buf, vn[i])
+            vertex_normal(i, (NO_VERTEX, NO_VERTEX, P[i]), (P, F, vhead, cnext, falive), buf,
+                          vn[i])
             for h in range(n_views):
                 _light(P[i, 0], P[i, 1], P[i, 2], vn[i], eyes[h], shading, L[h, i], 0)
     live = np.flatnonzero(falive)
@@ -221,15 +222,16 @@ def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vs
         local[:] = -1
         none_i = np.full(1, -1, np.int64)
         for k in range(live.shape[0]):
-            fill_screen(t, k, live[k], h, NO_VERTEX, NO_VERTEX, S[h, 0], S, F)
+            fill_screen((t, k, live[k], h), (NO_VERTEX, NO_VERTEX, S[h, 0]), S, F)
             if shade:
-                fill_shading(t, k, live[k], h, NO_VERTEX, NO_VERTEX, P[0], P, F, FW, uv, L, vslot,
-                             ov_light, wslot, new_uv, none_i, none_i, ZERO, shading)
+                fill_shading((t, k, live[k], h), (NO_VERTEX, NO_VERTEX, P[0]), (P, F, FW, uv),
+                             (L, vslot, ov_light), (wslot, new_uv, none_i, none_i, ZERO),
+                             shading)
             row_box(t, k, width, height, fbox[h, live[k]])
-            scan_row(t, k, k, ZERO, width - 1, ZERO, height - 1, cull[h], depth, local)
+            scan_row(t, k, k, (ZERO, width - 1, ZERO, height - 1), cull[h], depth, local)
         if shade:
-            shade_region(t, local, 0, width - 1, 0, height - 1, eyes[h], shading, texture,
-                         background, Y[h])
+            shade_region(t, local, (ZERO, width - 1, ZERO, height - 1), eyes[h], shading,
+                         texture, background, Y[h])
         for r in range(height):
             for c in range(width):
                 if local[r, c] >= 0:

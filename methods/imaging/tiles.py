@@ -87,11 +87,17 @@ def _overlaps(box, rect):
 
 
 @njit(cache=True, _nrt=False)
-def _gather(tiles, h, rect, fbox, falive, mark, tick, cand, n, tile, nx, tmark, ttick):
-    """Append to ``cand[n:]`` the live, unmarked faces whose box overlaps ``rect``,
-    looking only in the tiles marked ``tmark == ttick`` (the tiles where something is
-    to be drawn; a face listed in no such tile draws nothing there)."""
+def _gather(tiles, h, rect, faces, marks, cand, n, grid):
+    """Append to ``cand[n:]`` the live, unmarked faces whose box overlaps ``rect`` in
+    view ``h``, looking only in the marked tiles (the tiles where something is to be
+    drawn; a face listed in no such tile draws nothing there). ``faces`` is (fbox,
+    falive), ``marks`` (mark, tick, tmark, ttick): a face is marked where ``mark ==
+    tick``, a tile where ``tmark == ttick``; ``grid`` is (tile, nx), the tiles' side and
+    count per row."""
     ptr, cnt, items = tiles.ptr, tiles.cnt, tiles.items
+    fbox, falive = faces
+    mark, tick, tmark, ttick = marks
+    tile, nx = grid
     for ty in range(rect[2] // tile, rect[3] // tile + 1):
         for tx in range(rect[0] // tile, rect[1] // tile + 1):
             i = ty * nx + tx

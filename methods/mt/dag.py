@@ -175,6 +175,15 @@ class Cut:
     def copy(self) -> Cut:
         return Cut(self.mt, self.applied)
 
+    def arcs(self) -> _Arcs:
+        """The MT's arcs as the cut's kernels read them (:data:`_Arcs`)."""
+        mt = self.mt
+        return _Arcs(mt.delta, mt.parent_start, mt.parents, mt.child_start, mt.children)
+
+    def frontier(self) -> _CutArrays:
+        """The cut's arrays, which its kernels change in place (:data:`_CutArrays`)."""
+        return _CutArrays(self.applied, self.n_applied_parents, self.n_refined_children)
+
     def raise_node(self, i: int) -> np.ndarray:
         """Refine node ``i`` (un-apply its collapse) after raising its applied ancestors.
 
@@ -182,10 +191,8 @@ class Cut:
         already above the cut). Lowering them in the reverse order restores the cut.
         """
         self._check_node(i)
-        order, self.n_faces = _raise_closure(
-            i, self.applied, self.n_faces, self.mt.delta, self.mt.parent_start,
-            self.mt.parents, self.mt.child_start, self.mt.children, self.n_applied_parents,
-            self.n_refined_children, self._stack, self._mark, self._tick)
+        order, self.n_faces = _raise_closure(i, self.n_faces, self.arcs(), self.frontier(),
+                                             (self._stack, self._mark, self._tick))
         return order
 
     def lower_node(self, i: int) -> np.ndarray:
@@ -195,10 +202,8 @@ class Cut:
         is already below the cut). Raising them in the reverse order restores the cut.
         """
         self._check_node(i)
-        order, self.n_faces = _lower_closure(
-            i, self.applied, self.n_faces, self.mt.delta, self.mt.parent_start,
-            self.mt.parents, self.mt.child_start, self.mt.children, self.n_applied_parents,
-            self.n_refined_children, self._stack, self._mark, self._tick)
+        order, self.n_faces = _lower_closure(i, self.n_faces, self.arcs(), self.frontier(),
+                                             (self._stack, self._mark, self._tick))
         return order
 
     def _check_node(self, i: int) -> None:
@@ -318,6 +323,13 @@ def _dependencies(creator, destroyer, c):
     child_start, children = csr(upper, lower)
     return parent_start, parents, child_start, children
 
+
+#: The MT's arcs as the cut's kernels read them: each node's ``delta`` (faces added when
+#: it is refined) and its parents and children (CSR lists).
+_Arcs = namedtuple("_Arcs", "delta parent_start parents child_start children")
+#: A cut's arrays (:class:`Cut`): ``applied`` per node and, per node, its applied parents
+#: and refined children (``n_ap``, ``n_rc``), all changed in place.
+_CutArrays = namedtuple("_CutArrays", "applied n_ap n_rc")
 
 #: The replay's input: the welded mesh the engine simplified (positions ``Pw`` and their
 #: unit-diagonal ``Pn``, faces ``F``; changed by the replay), the render mesh's faces
@@ -580,23 +592,25 @@ def _frontier_counts(applied, parent_start, parents, child_start, children):
 
 
 @njit(cache=True)
-def _set_refined(i, applied, parent_start, parents, child_start, children, n_ap, n_rc):
-    """Un-apply node i (its parents must be refined) and update the frontier counts."""
-    applied[i] = False
-    for j in range(parent_start[i], parent_start[i + 1]):
-        n_rc[parents[j]] += 1
-    for j in range(child_start[i], child_start[i + 1]):
-        n_ap[children[j]] -= 1
+def _set_refined(i, arcs, cut):
+    """Un-apply node i (its parents must be refined) and update the frontier counts
+    (:data:`_Arcs`, :data:`_CutArrays`)."""
+    cut.applied[i] = False
+    for j in range(arcs.parent_start[i], arcs.parent_start[i + 1]):
+        cut.n_rc[arcs.parents[j]] += 1
+    for j in range(arcs.child_start[i], arcs.child_start[i + 1]):
+        cut.n_ap[arcs.children[j]] -= 1
 
 
 @njit(cache=True)
-def _set_applied(i, applied, parent_start, parents, child_start, children, n_ap, n_rc):
-    """Apply node i (its children must be applied) and update the frontier counts."""
-    applied[i] = True
-    for j in range(parent_start[i], parent_start[i + 1]):
-        n_rc[parents[j]] -= 1
-    for j in range(child_start[i], child_start[i + 1]):
-        n_ap[children[j]] += 1
+def _set_applied(i, arcs, cut):
+    """Apply node i (its children must be applied) and update the frontier counts
+    (:data:`_Arcs`, :data:`_CutArrays`)."""
+    cut.applied[i] = True
+    for j in range(arcs.parent_start[i], arcs.parent_start[i + 1]):
+        cut.n_rc[arcs.parents[j]] -= 1
+    for j in range(arcs.child_start[i], arcs.child_start[i + 1]):
+        cut.n_ap[arcs.children[j]] += 1
 
 
 #: :func:`_collect`'s ``want_applied``, typed (one compiled function for both, not one
@@ -631,27 +645,30 @@ def _collect(i, want_applied, applied, start, links, stack, mark, tick):
 
 
 @njit(cache=True)
-def _raise_closure(i, applied, n_faces, delta, parent_start, parents, child_start, children,
-                   n_ap, n_rc, stack, mark, tick):
+def _raise_closure(i, n_faces, arcs, cut, walk):
     """Refine node i and its applied ancestors, parents first (they have higher
-    indices: a parent removes triangles its child created later in the sequence)."""
-    n = _collect(i, _WANT_APPLIED, applied, parent_start, parents, stack, mark, tick)
+    indices: a parent removes triangles its child created later in the sequence).
+    ``walk`` is :func:`_collect`'s (stack, mark, tick)."""
+    stack, mark, tick = walk
+    n = _collect(i, _WANT_APPLIED, cut.applied, arcs.parent_start, arcs.parents, stack, mark,
+                 tick)
     order = np.sort(stack[:n])[::-1].copy()
     for x in order:
-        _set_refined(x, applied, parent_start, parents, child_start, children, n_ap, n_rc)
-        n_faces += delta[x]
+        _set_refined(x, arcs, cut)
+        n_faces += arcs.delta[x]
     return order, n_faces
 
 
 @njit(cache=True)
-def _lower_closure(i, applied, n_faces, delta, parent_start, parents, child_start, children,
-                   n_ap, n_rc, stack, mark, tick):
+def _lower_closure(i, n_faces, arcs, cut, walk):
     """Apply node i after its refined descendants, children first (lower indices)."""
-    n = _collect(i, _WANT_REFINED, applied, child_start, children, stack, mark, tick)
+    stack, mark, tick = walk
+    n = _collect(i, _WANT_REFINED, cut.applied, arcs.child_start, arcs.children, stack, mark,
+                 tick)
     order = np.sort(stack[:n])
     for x in order:
-        _set_applied(x, applied, parent_start, parents, child_start, children, n_ap, n_rc)
-        n_faces -= delta[x]
+        _set_applied(x, arcs, cut)
+        n_faces -= arcs.delta[x]
     return order, n_faces
 
 

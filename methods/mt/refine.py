@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import heapq
 import time
-from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -93,21 +92,12 @@ def _heap_pop(keys, vals, n, ties):
     return top, n
 
 
-#: The MT's arcs as :func:`_refine` reads them: each node's ``delta`` (faces added
-#: when it is refined) and its parents and children (CSR lists).
-_Arcs = namedtuple("_Arcs", "delta parent_start parents child_start children")
-#: A cut (methods.mt.dag.Cut): ``applied`` per node and, per node, its applied parents
-#: and refined children (``n_ap``, ``n_rc``), all changed in place.
-_CutArrays = namedtuple("_CutArrays", "applied n_ap n_rc")
-
-
 @njit(cache=True)
 def _lower_one(i, err, arcs, cut, heaps):
     """Apply frontier node i; it joins R, parents that became lowerable join L.
     ``heaps`` is (R's keys, values, size, L's keys, values, size); returns it updated."""
     rk, rv, nr, lk, lv, nl = heaps
-    _set_applied(i, cut.applied, arcs.parent_start, arcs.parents, arcs.child_start,
-                 arcs.children, cut.n_ap, cut.n_rc)
+    _set_applied(i, arcs, cut)
     rk, rv, nr = _heap_push(rk, rv, nr, -err[i], i, _R_TIES)
     for j in range(arcs.parent_start[i], arcs.parent_start[i + 1]):
         p = arcs.parents[j]
@@ -121,8 +111,7 @@ def _raise_one(i, err, arcs, cut, heaps):
     """Refine frontier node i; it joins L, children that became raisable join R
     (``heaps`` as in :func:`_lower_one`)."""
     rk, rv, nr, lk, lv, nl = heaps
-    _set_refined(i, cut.applied, arcs.parent_start, arcs.parents, arcs.child_start,
-                 arcs.children, cut.n_ap, cut.n_rc)
+    _set_refined(i, arcs, cut)
     lk, lv, nl = _heap_push(lk, lv, nl, err[i], i, _L_TIES)
     for j in range(arcs.child_start[i], arcs.child_start[i + 1]):
         ch = arcs.children[j]
@@ -248,9 +237,8 @@ def refine(cut: Cut, errors: np.ndarray, budget: int) -> tuple[int, int]:
     errors = np.ascontiguousarray(errors, dtype=np.float64)
     if errors.shape != (mt.n_nodes,):
         raise ValueError(f"errors must have shape ({mt.n_nodes},), got {errors.shape}")
-    arcs = _Arcs(mt.delta, mt.parent_start, mt.parents, mt.child_start, mt.children)
-    frontier = _CutArrays(cut.applied, cut.n_applied_parents, cut.n_refined_children)
-    faces, raised, lowered = _refine(int(budget), errors, int(cut.n_faces), arcs, frontier)
+    faces, raised, lowered = _refine(int(budget), errors, int(cut.n_faces), cut.arcs(),
+                                     cut.frontier())
     cut.n_faces = int(faces)
     return int(raised), int(lowered)
 

@@ -619,12 +619,13 @@ def _check_uv_array(uv, name: str) -> np.ndarray:
 
 
 @njit(cache=True)
-def _canny_penalty(a, b, P, F, FW, uv, borders, vhead, cnext, falive, efaces, per_area,
-                   no_record):
+def _canny_penalty(a, b, surface, borders, per_area, efaces, no_record):
     """González et al. 2007, equations 1-2: (area of the edge's faces) × ``per_area``
-    when the edge's UV segment, in any of its faces' charts, crosses a texture border;
-    0 otherwise. ``per_area`` is 1 / the original's total area (equation 2's ratio) or
-    that ratio in the base cost's units (``Terms.canny_per_area``)."""
+    when the edge's UV segment, in any of its faces' charts, crosses a texture border
+    (``borders``); 0 otherwise. ``per_area`` is 1 / the original's total area (equation
+    2's ratio) or that ratio in the base cost's units (``Terms.canny_per_area``).
+    ``surface`` is the mesh's (P, F, FW, uv, falive, vhead, cnext)."""
+    P, F, FW, uv, falive, vhead, cnext = surface
     k = _edge_faces(a, b, F, vhead, cnext, falive, efaces)
     h, w = borders.shape
     for i in range(min(k, efaces.shape[0])):

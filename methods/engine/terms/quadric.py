@@ -309,10 +309,9 @@ def _edge_quadric(a, b, mesh, scratch):
     if WQ.shape[0] > 1:
         gfrom, gto, targets, g = (scratch.wq.gfrom, scratch.wq.gto, scratch.wq.targets,
                                   scratch.wq.g)
-        npairs = _wedge_pairs(a, b, mesh.F, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive,
-                              scratch.efaces, gfrom, gto)
-        nt = _wedge_targets(a, b, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive, gfrom, gto,
-                            npairs, targets)
+        fan = (mesh.F, mesh.FW, mesh.vhead, mesh.cnext, mesh.falive)
+        npairs = _wedge_pairs(a, b, fan, scratch.efaces, gfrom, gto)
+        nt = _wedge_targets(a, b, fan, (gfrom, gto, npairs), targets)
         for i in range(nt):
             _group_quadric(targets[i], WQ, gfrom, gto, npairs, g)
             _add_reduced(g, mesh.uv[targets[i]], qsum)

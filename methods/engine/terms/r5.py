@@ -42,7 +42,7 @@ def _r5_compute(u, v, p, t_edge, surface, face_kappa, pairs, r5):
     patch, targets, new_uv = r5.patch, r5.targets, r5.new_uv
     tri_a, tri_b, tri_c, uv_a, uv_b, uv_c = patch
     cap = tri_a.shape[0]
-    nt = _wedge_targets(u, v, FW, vhead, cnext, falive, wmap_from, wmap_to, npairs, targets)
+    nt = _wedge_targets(u, v, (F, FW, vhead, cnext, falive), pairs, targets)
     for ti in range(nt):
         t = targets[ti]
         n = np.int64(0)  # typed: see docs/maintainers.md, literal arguments

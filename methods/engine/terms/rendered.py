@@ -19,28 +19,31 @@ from metrics.shading import BACKGROUND
 
 
 @njit(cache=True, inline="always")
-def _both_ways(a, b, ca, cb, mesh, rules, terms, scratch, images):
-    """``ca`` and ``cb`` plus the rendered cost of keeping a (removing b) and of keeping
-    b. The way that redraws fewer pixels goes first (:func:`_first_then_other`)."""
+def _both_ways(a, b, costs, mesh, rules, terms, scratch, images):
+    """``costs`` = (ca, cb) plus the rendered cost of keeping a (removing b) and of
+    keeping b. The way that redraws fewer pixels goes first (:func:`_first_then_other`)."""
+    ca, cb = costs
     vhead, cnext, falive, ent = mesh.vhead, mesh.cnext, mesh.falive, images.img.ent
     if fan_pixels(b, vhead, cnext, falive, ent) <= fan_pixels(a, vhead, cnext, falive, ent):
-        return _first_then_other(b, a, ca, cb, mesh, rules, terms, scratch, images)
-    cb, ca = _first_then_other(a, b, cb, ca, mesh, rules, terms, scratch, images)
+        return _first_then_other(b, a, (ca, cb), mesh, rules, terms, scratch, images)
+    cb, ca = _first_then_other(a, b, (cb, ca), mesh, rules, terms, scratch, images)
     return ca, cb
 
 
 @njit(cache=True, inline="always")
-def _first_then_other(u, v, first, other, mesh, rules, terms, scratch, images):
-    """``first`` plus the rendered cost of collapsing u into v, and ``other`` plus that
-    of collapsing v into u; the latter stops once it is sure to cost more (it is then
-    inf: the verdict, the cheaper cost and the placement are those of rendering all its
-    views), taking first the views where the first way changed the most."""
+def _first_then_other(u, v, costs, mesh, rules, terms, scratch, images):
+    """``costs`` = (first, other): ``first`` plus the rendered cost of collapsing u into
+    v, and ``other`` plus that of collapsing v into u; the latter stops once it is sure
+    to cost more (it is then inf: the verdict, the cheaper cost and the placement are
+    those of rendering all its views), taking first the views where the first way
+    changed the most."""
     P = mesh.P
-    first += _view_cost(u, v, P[v], mesh, rules, terms, scratch, images, np.inf)
+    first, other = costs
+    first += _view_cost((u, v, P[v]), mesh, rules, terms, scratch, images, np.inf)
     bound = _losing_sum(first, other, rules.weights)
     if bound < np.inf:
         rank_views(images.iws)
-    other += _view_cost(v, u, P[u], mesh, rules, terms, scratch, images, bound)
+    other += _view_cost((v, u, P[u]), mesh, rules, terms, scratch, images, bound)
     return first, other
 
 
@@ -63,25 +66,28 @@ def _losing_sum(ca, base, weights):
 
 
 @njit(cache=True)
-def _view_cost(u, v, p, mesh, rules, terms, scratch, images, bound):
-    """The rendered cost terms of collapsing u into v at p, from one re-render of the
+def _view_cost(move, mesh, rules, terms, scratch, images, bound):
+    """The rendered cost terms of ``move`` = (u, v, p), collapsing u into v at p, from
+    one re-render of the
     affected rectangles: ``weights.image`` × equation 8 of Lindstrom & Turk 2000 plus
     ``weights.entropy`` × the sum over views of |change of the viewpoint entropy|
     (González et al. 2008, §3), which :func:`methods.imaging.region.image_cost` leaves in
     the image state; inf once that sum passes ``bound`` (then not all views are
     rendered)."""
     weights = rules.weights
-    cost = weights.image * _image_term(u, v, p, mesh, rules, terms, scratch, images, bound)
+    cost = weights.image * _image_term(move, mesh, rules, terms, scratch, images, bound)
     if weights.entropy != 0.0:
         cost += weights.entropy * images.img.ent.delta[0]
     return cost
 
 
 @njit(cache=True)
-def _image_term(u, v, p, mesh, rules, terms, scratch, images, bound):
-    """Equation 8 of Lindstrom & Turk 2000 for collapsing u into v at p, with the
-    texture coordinates the collapse would give (methods.imaging.region.image_cost,
-    which stops once the views' |dH| passes ``bound``)."""
+def _image_term(move, mesh, rules, terms, scratch, images, bound):
+    """Equation 8 of Lindstrom & Turk 2000 for ``move`` = (u, v, p), collapsing u into
+    v at p, with the texture coordinates the collapse would give
+    (methods.imaging.region.image_cost, which stops once the views' |dH| passes
+    ``bound``)."""
+    u, v, p = move
     P, F, FW, uv, falive, vhead, cnext = (mesh.P, mesh.F, mesh.FW, mesh.uv, mesh.falive,
                                           mesh.vhead, mesh.cnext)
     wfrom, wto, efaces = scratch.wmap_from, scratch.wmap_to, scratch.efaces
@@ -89,7 +95,7 @@ def _image_term(u, v, p, mesh, rules, terms, scratch, images, bound):
     npairs = 0
     nt = 0
     if rules.has_uv:
-        npairs = _wedge_pairs(u, v, F, FW, vhead, cnext, falive, efaces, wfrom, wto)
+        npairs = _wedge_pairs(u, v, (F, FW, vhead, cnext, falive), efaces, wfrom, wto)
         t_edge = _edge_parameter(u, v, p, P)
         if rules.use_r5:
             nt = _r5_compute(u, v, p, t_edge, (P, F, FW, uv, falive, vhead, cnext),
