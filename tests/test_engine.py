@@ -505,7 +505,7 @@ def test_wedge_quadrics_through_collapses_are_sums_over_the_original_faces():
         np.testing.assert_allclose(s.qsum, expected, rtol=1e-9,
                                    atol=1e-12 * np.abs(expected).max())
         p = (np.asarray(pos) - prep.lo) / prep.scale
-        _collapse(u, v, p, a, rules, terms, s, changed, 0, kinds)
+        _collapse(u, v, p, a, rules, terms, s, (changed, 0, kinds))
         for w, x in pairs:
             into[into == w] = x
         live = np.unique(a.FW[a.falive])

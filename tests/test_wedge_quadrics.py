@@ -139,7 +139,7 @@ def check_collapse(u, v, p, oracle, arrays, rules, terms, scratch):
     scale = np.abs(expected).max()
     np.testing.assert_allclose(unpack3(scratch.qsum), expected, rtol=1e-9, atol=1e-12 * scale)
     _collapse(u, v, p.copy(), arrays, rules, terms, scratch,
-              np.empty(3 * len(arrays.F), np.int64), 0, np.zeros(N_KINDS, np.int64))
+              (np.empty(3 * len(arrays.F), np.int64), 0, np.zeros(N_KINDS, np.int64)))
     oracle.merge(groups)
     live = np.unique(arrays.FW[arrays.falive])
     expected = oracle.quadrics()[live]

@@ -21,14 +21,15 @@ from methods.engine.wedges import (
 
 
 @njit(cache=True)
-def _collapse(u, v, p, mesh, rules, terms, scratch, log_changed, n_changed, kinds):
+def _collapse(u, v, p, mesh, rules, terms, scratch, record):
     """Merge u into v at p. Returns (faces removed, changed count, wedge pairs, merged
     wedges) and fills ``scratch.efaces`` with the removed faces, ``scratch.wmap_from``/
     ``wmap_to`` with the wedge pairs and ``scratch.wq.targets`` with the merged vertex's
-    distinct wedges; the faces whose corner moved are appended to ``log_changed`` from
-    ``n_changed``. ``kinds`` counts twin and stranded-wedge
-    collapses (:func:`_count_kinds`); ``rules.uv_fix`` applies :func:`_uv_correction`
-    last."""
+    distinct wedges. ``record`` is (log_changed, n_changed, kinds): the faces whose
+    corner moved are appended to ``log_changed`` from ``n_changed``; ``kinds`` counts
+    twin and stranded-wedge collapses (:func:`_count_kinds`). ``rules.uv_fix`` applies
+    :func:`_uv_correction` last."""
+    log_changed, n_changed, kinds = record
     P, Q, F, FW, falive, vhead, cnext, valive, wedge_vertex = (
         mesh.P, mesh.Q, mesh.F, mesh.FW, mesh.falive, mesh.vhead, mesh.cnext, mesh.valive,
         mesh.wedge_vertex)

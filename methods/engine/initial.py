@@ -51,9 +51,11 @@ def candidate_edges(mesh, scratch):
 
 
 @njit(cache=True, nogil=True)
-def _cost_range(lo, hi, edges, mesh, rules, terms, scratch, images, costs, keeps, places):
-    """Cost edges ``edges[lo:hi]`` into rows ``lo:hi`` of ``costs`` (the cost), ``keeps``
-    (the vertex kept) and ``places`` (where it goes); cycles go to the run's counter."""
+def _cost_range(span, edges, mesh, rules, terms, scratch, images, out):
+    """Cost edges ``edges[lo:hi]``, ``span`` = (lo, hi), into rows ``lo:hi`` of ``out``
+    = (costs, keeps, places): the cost, the vertex kept and where it goes; cycles go to
+    the run's counter."""
+    (lo, hi), (costs, keeps, places) = span, out
     start = cycles()
     # The callers' structures outlive the call (methods.engine.borrow).
     mesh, terms, scratch, images = borrowed((mesh, terms, scratch, images))
@@ -118,7 +120,7 @@ def first_costs(mesh, rules, terms, scratch, images, threads: int | None = None)
     chunks = edge_chunks(n, max(1, threads))
     threads = max(1, min(threads, len(chunks)))
     if threads == 1:
-        _cost_range(0, n, edges, mesh, rules, terms, scratch, images, *out)
+        _cost_range((0, n), edges, mesh, rules, terms, scratch, images, out)
         return (edges, *out)
     states = [_worker_state(scratch, images) for _ in range(threads)]
     taken = iter(chunks)
@@ -133,8 +135,8 @@ def first_costs(mesh, rules, terms, scratch, images, threads: int | None = None)
                     chunk = next(taken, None)
                 if chunk is None:
                     return
-                _cost_range(chunk[0], chunk[1], edges, mesh, rules, terms, own_scratch,
-                            own_images, *out)
+                _cost_range((chunk[0], chunk[1]), edges, mesh, rules, terms, own_scratch,
+                            own_images, out)
         except BaseException:
             stop.set()
             raise

@@ -152,9 +152,7 @@ def _check_candidate(u, v, fresh, mesh, rules, scratch):
         if over_capacity(u, v, mesh, rules, scratch):
             return REJECT_CAPACITY
         return REJECT_SEAM_RULE
-    code = _check(u, v, scratch.p, mesh.P, mesh.F, mesh.vhead, mesh.cnext, mesh.falive,
-                  mesh.vboundary, scratch.mark, scratch.tick, scratch.nbr_u, scratch.nbr_v,
-                  scratch.efaces, rules.cos_limit, rules.boundary_lock)
+    code = _check(u, v, mesh, rules, scratch)
     if code == VALID and rules.keep_parts and empties_a_part(u, v, mesh, scratch):
         return REJECT_LAST_OF_PART
     if code == VALID and _beyond_reach(u, v, scratch.p, mesh, _reach(u, v, mesh, rules)):
@@ -208,8 +206,8 @@ def _plane_offset(f, p, mesh):
     ``p``'s distance to the face's plane is their ratio."""
     P, F = mesh.P, mesh.F
     a, b, d = F[f, 0], F[f, 1], F[f, 2]
-    nx, ny, nz = _normal3(P[a, 0], P[a, 1], P[a, 2], P[b, 0], P[b, 1], P[b, 2],
-                          P[d, 0], P[d, 1], P[d, 2])
+    nx, ny, nz = _normal3((P[a, 0], P[a, 1], P[a, 2]), (P[b, 0], P[b, 1], P[b, 2]),
+                          (P[d, 0], P[d, 1], P[d, 2]))
     length = math.sqrt(nx * nx + ny * ny + nz * nz)
     off = nx * (p[0] - P[a, 0]) + ny * (p[1] - P[a, 1]) + nz * (p[2] - P[a, 2])
     return abs(off), length
@@ -290,11 +288,13 @@ def _log_wedges(log, npairs, nt, mesh, rules, scratch):
 
 
 @njit(cache=True)
-def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
+def _take(u, v, mesh, rules, terms, scratch, images, record):
     """Collapse u into v at ``scratch.p``: note whether v moves, collapse, log the
-    removed faces and merged wedges, and bring the images (or face ids) up to date.
-    Returns (faces removed, images) — the tile index is rebuilt when a commit overflows
-    it (and handed to the threads that share the views)."""
+    removed faces and merged wedges into ``record`` = (log, kinds) (kinds: the
+    collapse kinds' counts), and bring the images (or face ids) up to date. Returns
+    (faces removed, images) — the tile index is rebuilt when a commit overflows it (and
+    handed to the threads that share the views)."""
+    log, kinds = record
     P, p = mesh.P, scratch.p
     stays = p[0] == P[v, 0] and p[1] == P[v, 1] and p[2] == P[v, 2]
     if not stays:
@@ -304,7 +304,7 @@ def _take(u, v, mesh, rules, terms, scratch, images, log, kinds):
     n = log.count[LOG_COLLAPSES]
     first_changed = log.count[LOG_CHANGED]
     removed, n_changed, npairs, nt = _collapse(u, v, p.copy(), mesh, rules, terms, scratch,
-                                               log.changed, first_changed, kinds)
+                                               (log.changed, first_changed, kinds))
     log.count[LOG_CHANGED] = n_changed
     _log_wedges(log, npairs, nt, mesh, rules, scratch)
     efaces = scratch.efaces
@@ -358,20 +358,20 @@ def _release_blocked(heap, blocked, w, cost, p, valive):
 
 
 @njit(cache=True)
-def _requeue(heap, u, v, removed, cost, fresh, mesh, rules, terms, scratch, images, queue,
-             blocked, log):
-    """After collapsing u into v: stamp v, and its neighbours when costs depend on the
-    triangles around an edge (a quadric cost of (w, x) depends only on w and x, which
-    did not change); release the neighbours' blocked edges; queue v's edges afresh.
+def _requeue(taken, lazy, log, mesh, rules, terms, scratch, images):
+    """After ``taken`` = (u, v, removed faces, cost, fresh cost), collapsing u into v:
+    stamp v, and its neighbours when costs depend on the triangles around an edge (a
+    quadric cost of (w, x) depends only on w and x, which did not change); release the
+    neighbours' blocked edges; queue v's edges afresh (``lazy``: the heap, the queue's
+    bookkeeping and the blocked edges).
 
     With the seam rule and pure quadric costs, the apexes of the removed faces get fresh
     entries for their edges too: they lost a face, which can change whether they are
     seam vertices (and so the seam rule's verdict on their edges). (With neighbourhood
-    costs they were stamped already and are re-costed lazily.)
-
-    The eager re-costing is one loop over v and the apexes, so :func:`_evaluate` has a
-    single call site here: each call site is a copy of the costing for numba and LLVM
-    to compile."""
+    costs they were stamped already and are re-costed lazily.) The eager re-costing is
+    one loop over v and the apexes, so :func:`_evaluate` has a single call site here:
+    each call site is a copy of the costing for numba and LLVM to compile."""
+    (u, v, removed, cost, fresh), (heap, queue, blocked) = taken, lazy
     weights, stamp, p, nbr_v = rules.weights, queue.stamp, scratch.p, scratch.nbr_v
     rendered = renders(weights)
     neighbourhood_cost = weights.memoryless != 0.0 or weights.canny != 0.0 or rendered
@@ -513,12 +513,12 @@ def _run(mesh, rules, terms, scratch, images, kinds, first):
             break
         # Take it: log, collapse, update the images.
         log = _log_collapse(log, u, v, fresh, scratch.p)
-        removed, images = _take(u, v, mesh, rules, terms, scratch, images, log, kinds)
+        removed, images = _take(u, v, mesh, rules, terms, scratch, images, (log, kinds))
         faces -= removed
         mesh.vboundary[v] = mesh.vboundary[v] or mesh.vboundary[u]  # stays a boundary
         # Stamp and re-queue: the costs around v changed.
-        _requeue(heap, u, v, removed, cost, fresh, mesh, rules, terms, scratch, images, queue,
-                 blocked, log)
+        _requeue((u, v, removed, cost, fresh), (heap, queue, blocked), log, mesh, rules, terms,
+                 scratch, images)
     if faces <= rules.target:
         stopped = 0
     images.img.stats[STAT_RUN_CYCLES] += cycles() - run_start
@@ -533,7 +533,7 @@ def compile_collapse(mesh, rules, terms, scratch, images, kinds) -> None:
     (:func:`methods.engine.simplify.compile_part`)."""
     log = _new_log(rules.max_collapses, mesh.F.shape[0])
     u = np.int64(0)
-    for kernel, args in ((_take, (u, u, mesh, rules, terms, scratch, images, log, kinds)),
+    for kernel, args in ((_take, (u, u, mesh, rules, terms, scratch, images, (log, kinds))),
                          (_check_candidate, (u, u, 0.0, mesh, rules, scratch)),
                          (_log_collapse, (log, u, u, 0.0, scratch.p))):
         kernel.compile(tuple(numba.typeof(a) for a in args))

@@ -117,18 +117,23 @@ def _normal(pa, pb, pc):
 
 
 @njit(cache=True, _nrt=False)
-def _normal3(ax, ay, az, bx, by, bz, cx, cy, cz):
-    """(b - a) x (c - a) from scalars: no temporary arrays in the hot loop."""
+def _normal3(a, b, c):
+    """(b - a) x (c - a) from 3-tuples of scalars: no temporary arrays in the hot loop."""
+    (ax, ay, az), (bx, by, bz), (cx, cy, cz) = a, b, c
     ux, uy, uz = bx - ax, by - ay, bz - az
     vx, vy, vz = cx - ax, cy - ay, cz - az
     return uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
 
 
 @njit(cache=True, _nrt=False)
-def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nbr_v,
-           efaces, cos_limit, boundary_lock):
-    """VALID if collapsing u into v at p is valid, else the REJECT_* code of the first
-    rule it breaks (methods.engine.policy lists the rules)."""
+def _check(u, v, mesh, rules, scratch):
+    """VALID if collapsing u into v at ``scratch.p`` is valid, else the REJECT_* code of
+    the first rule it breaks (methods.engine.policy lists the rules)."""
+    p, P, F, vhead, cnext, falive = scratch.p, mesh.P, mesh.F, mesh.vhead, mesh.cnext, \
+        mesh.falive
+    mark, tick, nbr_u, nbr_v, efaces = (scratch.mark, scratch.tick, scratch.nbr_u,
+                                        scratch.nbr_v, scratch.efaces)
+    vboundary, cos_limit, boundary_lock = mesh.vboundary, rules.cos_limit, rules.boundary_lock
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     if k > 2 or k == 0:
         return REJECT_NON_MANIFOLD  # (k == 0 cannot happen for a live edge)
@@ -174,17 +179,18 @@ def _check(u, v, p, P, F, vhead, cnext, falive, vboundary, mark, tick, nbr_u, nb
                                 return REJECT_DUPLICATE_FACE
                 # fold-over: the face with x moved to p
                 i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
-                b0, b1, b2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], P[i1, 0], P[i1, 1],
-                                      P[i1, 2], P[i2, 0], P[i2, 1], P[i2, 2])
+                b0, b1, b2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]),
+                                      (P[i1, 0], P[i1, 1], P[i1, 2]),
+                                      (P[i2, 0], P[i2, 1], P[i2, 2]))
                 if i0 == x:  # the same triangle with x moved to p
-                    a0, a1, a2 = _normal3(p[0], p[1], p[2], P[i1, 0], P[i1, 1], P[i1, 2],
-                                          P[i2, 0], P[i2, 1], P[i2, 2])
+                    a0, a1, a2 = _normal3((p[0], p[1], p[2]), (P[i1, 0], P[i1, 1], P[i1, 2]),
+                                          (P[i2, 0], P[i2, 1], P[i2, 2]))
                 elif i1 == x:
-                    a0, a1, a2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], p[0], p[1], p[2],
-                                          P[i2, 0], P[i2, 1], P[i2, 2])
+                    a0, a1, a2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]), (p[0], p[1], p[2]),
+                                          (P[i2, 0], P[i2, 1], P[i2, 2]))
                 else:
-                    a0, a1, a2 = _normal3(P[i0, 0], P[i0, 1], P[i0, 2], P[i1, 0], P[i1, 1],
-                                          P[i1, 2], p[0], p[1], p[2])
+                    a0, a1, a2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]),
+                                          (P[i1, 0], P[i1, 1], P[i1, 2]), (p[0], p[1], p[2]))
                 lb = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
                 la = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
                 if la <= 1e-12 * lb or la == 0.0:

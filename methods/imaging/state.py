@@ -173,11 +173,12 @@ def full_render(img, iws, P, F, FW, uv, falive, vhead, cnext, valive, background
     mesh and render all views from scratch into ``IDS`` (the face seen at each pixel, -1
     empty), ``DZ`` (its depth) and, where the state keeps luminance, ``Y`` (the entropy
     alone keeps none, and ``Y`` is left as it is)."""
-    # The parallel kernel takes the fields one by one: numba's parfor lowering cannot
-    # trace a namedtuple taken from another one's field into a prange body.
-    _full_render(img.M, img.eyes, img.cull, img.Y, img.S, img.fbox, img.vn, img.L,
-                 img.shading, img.texture, img.IDS, img.DZ, iws.vslot, iws.ov_light,
-                 iws.wslot, iws.new_uv, P, F, FW, uv, falive, vhead, cnext, valive,
+    # The parallel kernel takes the fields in plain tuples, unpacked before its prange
+    # loops: numba's parfor lowering cannot trace a namedtuple taken from another one's
+    # field into a prange body.
+    _full_render((img.M, img.eyes, img.cull, img.Y, img.S, img.fbox, img.vn, img.L, img.IDS,
+                  img.DZ), (iws.vslot, iws.ov_light, iws.wslot, iws.new_uv),
+                 (P, F, FW, uv, falive, vhead, cnext, valive), img.shading, img.texture,
                  background, keeps_luminance(img))
 
 
@@ -187,11 +188,14 @@ def keeps_luminance(img) -> bool:
 
 
 @njit(cache=True, parallel=True)
-def _full_render(M, eyes, cull, Y, S, fbox, vn, L, shading, texture, IDS, DZ, vslot,
-                 ov_light, wslot, new_uv, P, F, FW, uv, falive, vhead, cnext, valive,
-                 background, shade):
-    """:func:`full_render` on the image state's fields (:data:`ImageState`,
-    :data:`ImageScratch`); ``Y`` only with ``shade``."""
+def _full_render(image, workspace, surface, shading, texture, background, shade):
+    """:func:`full_render` on the image state's fields (:data:`ImageState`: ``image`` =
+    (M, eyes, cull, Y, S, fbox, vn, L, IDS, DZ)), the workspace's (:data:`ImageScratch`:
+    ``workspace`` = (vslot, ov_light, wslot, new_uv)) and the mesh's (``surface`` = (P,
+    F, FW, uv, falive, vhead, cnext, valive)); ``Y`` only with ``shade``."""
+    M, eyes, cull, Y, S, fbox, vn, L, IDS, DZ = image
+    vslot, ov_light, wslot, new_uv = workspace
+    P, F, FW, uv, falive, vhead, cnext, valive = surface
     n_views, height, width = Y.shape
     nv, m = P.shape[0], F.shape[0]
     gouraud = shading.gouraud

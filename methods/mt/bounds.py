@@ -167,8 +167,8 @@ def preprocess(mt: MultiTriangulation, albedo: float = 1.0) -> NodeBounds:
     # §2.2: how far the node moves the surface (monotone up the MT)
     child_start, children = mt.child_start.astype(np.int64), mt.children.astype(np.int64)
     moved, held = _vertex_moves(tris, P, m, start, split, own)
-    parametric = _deviations(tris, P, mt.uv if mt.uv is not None else np.zeros((1, 2)),
-                             _min_uv_det(mt), fp_start, fp, start, split, own)
+    parametric = _deviations(tris, P, (mt.uv if mt.uv is not None else np.zeros((1, 2)),
+                                       _min_uv_det(mt)), fp_start, fp, start, split, own)
     creator = mt.creator.astype(np.int64)
     by_triangle = np.where(creator >= 0, np.maximum(held, parametric[creator]), 0.0)
     dev = np.maximum(moved, parametric)
@@ -819,7 +819,7 @@ _CREATED_SAMPLES = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0],
 
 
 @njit(cache=True)
-def _deviations(tris, P, UV, min_det, fp_start, fp, start, split, own):
+def _deviations(tris, P, texture, fp_start, fp, start, split, own):
     """Each node's own sampled parametric distance (§2.2; the module docstring's
     texture deviation, its parametric part).
 
@@ -835,17 +835,18 @@ def _deviations(tris, P, UV, min_det, fp_start, fp, start, split, own):
     Parameters
     ----------
     tris, P, fp_start, fp, start, split, own : see the block comment above
-    UV : ndarray (nv, 2) float64
-        MT vertex texture coordinates (ignored when ``min_det`` < 0).
-    min_det : float
-        Twice the UV area at or below which a UV triangle is degenerate: twice a texel's
-        area on a textured mesh (a triangle within one texel shows one colour, so its
-        UVs name no point of the surface), 0 with UVs and no texture, -1 without UVs.
+    texture : (UV, min_det)
+        UV, ndarray (nv, 2) float64: the MT vertex texture coordinates (ignored when
+        ``min_det`` < 0). min_det, float: twice the UV area at or below which a UV
+        triangle is degenerate: twice a texel's area on a textured mesh (a triangle
+        within one texel shows one colour, so its UVs name no point of the surface), 0
+        with UVs and no texture, -1 without UVs.
 
     Returns
     -------
     ndarray (c,) float64
     """
+    UV, min_det = texture
     c = start.shape[0] - 1
     dev = np.zeros(c)
     if min_det < 0.0:

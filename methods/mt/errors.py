@@ -112,7 +112,7 @@ def _node_errors(nodes, view, measure, out, status):
         if kind == 2 and measure.sil_contrast and not exact:
             contrast = 1.0
         else:
-            contrast = _contrast(nodes, measure, i, dx, dy, dz, dist, alpha, exact)
+            contrast = _contrast(nodes, measure, i, (dx, dy, dz), dist, alpha, exact)
         # worst-case frequency from the feature's extent (§3.2, §5.4)
         if measure.sphere_extent:
             extent_px = 2.0 * nodes.radius[i] * scale
@@ -161,11 +161,13 @@ def _seen(nodes, view, norm_side, i):
 
 
 @njit(cache=True)
-def _contrast(nodes, measure, i, dx, dy, dz, dist, alpha, exact):
+def _contrast(nodes, measure, i, d, dist, alpha, exact):
     """Node ``i``'s contrast (§3.3, §5.2, §5.4): its luminance range, bounded under the
     lighting over its shading cone (the silhouette cone under flat shading) as seen
-    from (dx, dy, dz) away at ``dist``, with the sphere's angular radius ``alpha``. An
-    ``exact`` node moves no texel: the lighting's range over its brightest texel."""
+    from ``d`` = (dx, dy, dz) away at ``dist``, with the sphere's angular radius
+    ``alpha``. An ``exact`` node moves no texel: the lighting's range over its brightest
+    texel."""
+    dx, dy, dz = d
     tmin, tmax = nodes.lum[i, 0], nodes.lum[i, 1]
     if exact:
         tmin = tmax

@@ -171,8 +171,9 @@ _TRIPLES = np.array([[a, b, c] for a in range(5) for b in range(a + 1, 5)
 # -- small linear algebra -----------------------------------------------------------------
 
 @njit(cache=True, _nrt=False)
-def _det3(a0, a1, a2, b0, b1, b2, c0, c1, c2):
-    """Determinant of the 3x3 matrix with rows (a, b, c)."""
+def _det3(a, b, c):
+    """Determinant of the 3x3 matrix with rows ``a``, ``b``, ``c`` (3-tuples)."""
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = a, b, c
     return a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0)
 
 
@@ -561,9 +562,9 @@ def lt_cost(p, pr, edge_sq_len, volume_weight=VOLUME_WEIGHT,
     o0, o1, o2 = p[0], p[1], p[2]  # relative to p, V_T = det[a, b, c] / 6
     volume = 0.0
     for i in range(n_tris):
-        v = _det3(tri_a[i, 0] - o0, tri_a[i, 1] - o1, tri_a[i, 2] - o2,
-                  tri_b[i, 0] - o0, tri_b[i, 1] - o1, tri_b[i, 2] - o2,
-                  tri_c[i, 0] - o0, tri_c[i, 1] - o1, tri_c[i, 2] - o2)
+        v = _det3((tri_a[i, 0] - o0, tri_a[i, 1] - o1, tri_a[i, 2] - o2),
+                  (tri_b[i, 0] - o0, tri_b[i, 1] - o1, tri_b[i, 2] - o2),
+                  (tri_c[i, 0] - o0, tri_c[i, 1] - o1, tri_c[i, 2] - o2))
         volume += v * v
     boundary = 0.0
     for j in range(n_bnd):
@@ -651,22 +652,22 @@ def _oriented_volume_rows(p, patch, i, uv0, kappa, D, G):
         D[3 + j, 2] = kappa * (uv_c[i, j] - uv0[j])
     for r in range(10):
         ra, rb, rc = _TRIPLES[r, 0], _TRIPLES[r, 1], _TRIPLES[r, 2]
-        G[r, 2] = _det3(D[ra, 0], D[ra, 1], D[ra, 2], D[rb, 0], D[rb, 1], D[rb, 2],
-                        D[rc, 0], D[rc, 1], D[rc, 2])
+        G[r, 2] = _det3((D[ra, 0], D[ra, 1], D[ra, 2]), (D[rb, 0], D[rb, 1], D[rb, 2]),
+                        (D[rc, 0], D[rc, 1], D[rc, 2]))
         G[r, 0] = 0.0
         G[r, 1] = 0.0
         # only rb and rc can be texture rows (3 or 4), since ra < rb < rc <= 4
         if rc == 3:
-            G[r, 0] = -kappa * _det3(D[ra, 0], D[ra, 1], D[ra, 2],
-                                     D[rb, 0], D[rb, 1], D[rb, 2], 1.0, 1.0, 1.0)
+            G[r, 0] = -kappa * _det3((D[ra, 0], D[ra, 1], D[ra, 2]), (D[rb, 0], D[rb, 1], D[rb, 2]),
+                                     (1.0, 1.0, 1.0))
         elif rc == 4 and rb == 3:
-            G[r, 0] = -kappa * _det3(D[ra, 0], D[ra, 1], D[ra, 2], 1.0, 1.0, 1.0,
-                                     D[rc, 0], D[rc, 1], D[rc, 2])
-            G[r, 1] = -kappa * _det3(D[ra, 0], D[ra, 1], D[ra, 2],
-                                     D[rb, 0], D[rb, 1], D[rb, 2], 1.0, 1.0, 1.0)
+            G[r, 0] = -kappa * _det3((D[ra, 0], D[ra, 1], D[ra, 2]), (1.0, 1.0, 1.0),
+                                     (D[rc, 0], D[rc, 1], D[rc, 2]))
+            G[r, 1] = -kappa * _det3((D[ra, 0], D[ra, 1], D[ra, 2]), (D[rb, 0], D[rb, 1], D[rb, 2]),
+                                     (1.0, 1.0, 1.0))
         elif rc == 4:
-            G[r, 1] = -kappa * _det3(D[ra, 0], D[ra, 1], D[ra, 2],
-                                     D[rb, 0], D[rb, 1], D[rb, 2], 1.0, 1.0, 1.0)
+            G[r, 1] = -kappa * _det3((D[ra, 0], D[ra, 1], D[ra, 2]), (D[rb, 0], D[rb, 1], D[rb, 2]),
+                                     (1.0, 1.0, 1.0))
 
 
 @njit(cache=True)
