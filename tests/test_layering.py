@@ -73,3 +73,33 @@ def test_the_independence_contract_names_every_method_plugin_module():
                   for value in config["project"]["entry-points"]["bench.methods"].values()}
     assert listed == on_disk
     assert registered <= listed
+
+
+def _functions():
+    """Every function of the suite's packages: (path, name, lines, parameters, numba)."""
+    import ast
+
+    for package in ("bench", "methods", "metrics"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    a = node.args
+                    count = (len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs)
+                             + (a.vararg is not None) + (a.kwarg is not None))
+                    numba = any("jit" in ast.unparse(d) for d in node.decorator_list)
+                    yield (f"{path.relative_to(ROOT)}::{node.name}",
+                           node.end_lineno - node.lineno + 1, count, numba)
+
+
+def test_kernels_take_at_most_eight_parameters():
+    """docs/maintainers.md, "State in the numba kernels": a kernel takes named
+    structures, or plain tuples named for what they hold, not loose arrays."""
+    wide = [(name, count) for name, _, count, numba in _functions() if numba and count > 8]
+    assert wide == []
+
+
+def test_functions_stay_short():
+    """None over 100 lines and at most three over 60, docstrings included."""
+    lengths = [(name, lines) for name, lines, _, _ in _functions()]
+    assert [x for x in lengths if x[1] > 100] == []
+    assert len([x for x in lengths if x[1] > 60]) <= 3, [x for x in lengths if x[1] > 60]
