@@ -68,7 +68,8 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
     counts[0] = counts[1] = counts[2] = 0  # no profile unless gathered
     l2 = ((P[a, 0] - P[b, 0]) ** 2 + (P[a, 1] - P[b, 1]) ** 2 + (P[a, 2] - P[b, 2]) ** 2)
     if weights.memoryless != 0.0 or rules.placement == PLACE_MEMORYLESS:
-        _gather_profile(a, b, mesh, scratch)
+        _gather_profile(a, b, P, (mesh.F, mesh.vhead, mesh.cnext, mesh.falive), mesh.vboundary,
+                        (scratch.efaces, scratch.mark, scratch.tick), scratch.profile)
     canny = 0.0
     if weights.canny != 0.0:  # depends on the edge only, not on where the vertex goes
         surface = (P, mesh.F, mesh.FW, mesh.uv, mesh.falive, mesh.vhead, mesh.cnext)

@@ -152,7 +152,9 @@ def _check_candidate(u, v, fresh, mesh, rules, scratch):
         if over_capacity(u, v, mesh, rules, scratch):
             return REJECT_CAPACITY
         return REJECT_SEAM_RULE
-    code = _check(u, v, mesh, rules, scratch)
+    code = _check(u, v, scratch.p, mesh.P, (mesh.F, mesh.vhead, mesh.cnext, mesh.falive),
+                  mesh.vboundary, (scratch.mark, scratch.tick, scratch.nbr_u, scratch.nbr_v,
+                                   scratch.efaces), (rules.cos_limit, rules.boundary_lock))
     if code == VALID and rules.keep_parts and empties_a_part(u, v, mesh, scratch):
         return REJECT_LAST_OF_PART
     if code == VALID and _beyond_reach(u, v, scratch.p, mesh, _reach(u, v, mesh, rules)):

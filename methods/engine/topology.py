@@ -126,14 +126,14 @@ def _normal3(a, b, c):
 
 
 @njit(cache=True, _nrt=False)
-def _check(u, v, mesh, rules, scratch):
-    """VALID if collapsing u into v at ``scratch.p`` is valid, else the REJECT_* code of
-    the first rule it breaks (methods.engine.policy lists the rules)."""
-    p, P, F, vhead, cnext, falive = scratch.p, mesh.P, mesh.F, mesh.vhead, mesh.cnext, \
-        mesh.falive
-    mark, tick, nbr_u, nbr_v, efaces = (scratch.mark, scratch.tick, scratch.nbr_u,
-                                        scratch.nbr_v, scratch.efaces)
-    vboundary, cos_limit, boundary_lock = mesh.vboundary, rules.cos_limit, rules.boundary_lock
+def _check(u, v, p, P, fan, vboundary, work, limits):
+    """VALID if collapsing u into v at p is valid, else the REJECT_* code of the first
+    rule it breaks (methods.engine.policy lists the rules). ``fan`` is the mesh's (F,
+    vhead, cnext, falive), ``work`` the scratch's (mark, tick, nbr_u, nbr_v, efaces),
+    ``limits`` the rules' (cos_limit, boundary_lock): the arrays it reads, not the
+    structures, whose every array a call would pass."""
+    (F, vhead, cnext, falive), (mark, tick, nbr_u, nbr_v, efaces) = fan, work
+    cos_limit, boundary_lock = limits
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     if k > 2 or k == 0:
         return REJECT_NON_MANIFOLD  # (k == 0 cannot happen for a live edge)
@@ -202,13 +202,13 @@ def _check(u, v, mesh, rules, scratch):
 
 
 @njit(cache=True, _nrt=False)
-def _gather_profile(a, b, mesh, scratch):
-    """The Lindstrom–Turk profile of edge (a, b) into ``scratch.profile``
+def _gather_profile(a, b, P, fan, vboundary, work, pr):
+    """The Lindstrom–Turk profile of edge (a, b) into ``pr``
     (:data:`methods.engine.state.Profile`): triangles around either end, their boundary
     edges (oriented as in the triangle) and the link vertices, with their counts, or
-    counts (-1, 0, 0) when the workspace is too small."""
-    P, F, vhead, cnext, falive = mesh.P, mesh.F, mesh.vhead, mesh.cnext, mesh.falive
-    efaces, mark, tick, pr = scratch.efaces, scratch.mark, scratch.tick, scratch.profile
+    counts (-1, 0, 0) when the workspace is too small. ``fan`` is the mesh's (F, vhead,
+    cnext, falive), ``work`` the scratch's (efaces, mark, tick)."""
+    (F, vhead, cnext, falive), (efaces, mark, tick) = fan, work
     tri_a, tri_b, tri_c, bnd_a, bnd_b, link = (pr.tri_a, pr.tri_b, pr.tri_c, pr.bnd_a,
                                                pr.bnd_b, pr.link)
     counts = pr.counts
@@ -240,7 +240,7 @@ def _gather_profile(a, b, mesh, scratch):
                     for j in range(3):
                         i0, i1 = F[f, j], F[f, (j + 1) % 3]
                         if (i0 == a or i0 == b or i1 == a or i1 == b) and \
-                                mesh.vboundary[i0] and mesh.vboundary[i1] and \
+                                vboundary[i0] and vboundary[i1] and \
                                 _edge_faces(i0, i1, F, vhead, cnext, falive, efaces) == 1:
                             if n_bnd == cap:
                                 return
