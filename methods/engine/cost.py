@@ -64,8 +64,9 @@ def _evaluate(a, b, mesh, rules, terms, scratch, images):
     if forced == -2:  # forbidden
         out_p[:] = P[b]
         return np.inf, b
-    weights, counts = rules.weights, scratch.profile.counts
-    counts[0] = counts[1] = counts[2] = 0  # no profile unless gathered
+    # The profile (and its counts) is read only where it is gathered: under the same
+    # condition, by _cost_at and _place.
+    weights = rules.weights
     l2 = ((P[a, 0] - P[b, 0]) ** 2 + (P[a, 1] - P[b, 1]) ** 2 + (P[a, 2] - P[b, 2]) ** 2)
     if weights.memoryless != 0.0 or rules.placement == PLACE_MEMORYLESS:
         _gather_profile(a, b, P, (mesh.F, mesh.vhead, mesh.cnext, mesh.falive), mesh.vboundary,
