@@ -17,9 +17,9 @@ import pytest
 from methods.engine.terms.lindstrom_turk import (
     ALPHA_DEG,
     ZERO_TOL,
+    Patch,
     _add_if_alpha_compatible,
     _oriented_volume_rows,
-    Patch,
     _System,
     lt_cost,
     lt_placement,

@@ -150,7 +150,7 @@ def _place(a, b, forced, l2, mesh, rules, scratch):
         else:  # degenerate profile, or a point far off (the placement guard): the
             # quadric's choice (Lindstrom & Turk fall back to it too)
             _guarded_optimal_point(a, b, l2, mesh, qsum, out_p)
-    else:  # optimal, or a profile too large for the workspace (counts[0] == -1)
+    else:  # optimal, or no profile to place by (counts[0] <= 0: empty, or too large)
         _guarded_optimal_point(a, b, l2, mesh, qsum, out_p)
     return b
 

@@ -587,7 +587,8 @@ def lt_cost(p, pr, edge_sq_len, volume_weight=VOLUME_WEIGHT,
 
 @njit(cache=True, _nrt=False)
 def _add_if_alpha_compatible2(s, n, a0, a1, rhs, ref, cos2):
-    """2D version of :func:`_add_if_alpha_compatible` (unknowns s, t)."""
+    """2D version of :func:`_add_if_alpha_compatible`: the unknowns are the two texture
+    coordinates (``s`` is the :data:`_System`)."""
     A, b = s.A, s.b
     if n >= 2:
         return n
@@ -622,7 +623,7 @@ def _add_from_gradient2(s, n, ref, cos2):
 
 @njit(cache=True, _nrt=False)
 def _add_projected_row2(s, n, q0, q1, ref, cos2):
-    """Candidate (H q) · (s, t) = -q · c for a unit direction q."""
+    """Candidate (H q) · uv = -q · c for a unit direction q (``s``: the :data:`_System`)."""
     H, c = s.H, s.c
     return _add_if_alpha_compatible2(s, n, H[0, 0] * q0 + H[0, 1] * q1,
                                      H[1, 0] * q0 + H[1, 1] * q1,

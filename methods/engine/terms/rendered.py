@@ -68,12 +68,11 @@ def _losing_sum(ca, base, weights):
 @njit(cache=True)
 def _view_cost(move, mesh, rules, terms, scratch, images, bound):
     """The rendered cost terms of ``move`` = (u, v, p), collapsing u into v at p, from
-    one re-render of the
-    affected rectangles: ``weights.image`` × equation 8 of Lindstrom & Turk 2000 plus
-    ``weights.entropy`` × the sum over views of |change of the viewpoint entropy|
-    (González et al. 2008, §3), which :func:`methods.imaging.region.image_cost` leaves in
-    the image state; inf once that sum passes ``bound`` (then not all views are
-    rendered)."""
+    one re-render of the affected rectangles: ``weights.image`` × equation 8 of
+    Lindstrom & Turk 2000 plus ``weights.entropy`` × the sum over views of |change of
+    the viewpoint entropy| (González et al. 2008, §3), which
+    :func:`methods.imaging.region.image_cost` leaves in the image state; inf once that
+    sum passes ``bound`` (then not all views are rendered)."""
     weights = rules.weights
     cost = weights.image * _image_term(move, mesh, rules, terms, scratch, images, bound)
     if weights.entropy != 0.0:
