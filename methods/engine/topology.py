@@ -126,13 +126,13 @@ def _normal3(a, b, c):
 
 
 @njit(cache=True, _nrt=False)
-def _check(u, v, p, P, fan, vboundary, work, limits):
+def _check(u, v, p, P, links, vboundary, work, limits):
     """VALID if collapsing u into v at p is valid, else the REJECT_* code of the first
-    rule it breaks (methods.engine.policy lists the rules). ``fan`` is the mesh's (F,
+    rule it breaks (methods.engine.policy lists the rules). ``links`` is the mesh's (F,
     vhead, cnext, falive), ``work`` the scratch's (mark, tick, nbr_u, nbr_v, efaces),
     ``limits`` the rules' (cos_limit, boundary_lock): the arrays it reads, not the
     structures, whose every array a call would pass."""
-    (F, vhead, cnext, falive), (mark, tick, nbr_u, nbr_v, efaces) = fan, work
+    (F, vhead, cnext, falive), (mark, tick, nbr_u, nbr_v, efaces) = links, work
     cos_limit, boundary_lock = limits
     k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
     if k > 2 or k == 0:
@@ -202,13 +202,13 @@ def _check(u, v, p, P, fan, vboundary, work, limits):
 
 
 @njit(cache=True, _nrt=False)
-def _gather_profile(a, b, P, fan, vboundary, work, pr):
+def _gather_profile(a, b, P, links, vboundary, work, pr):
     """The Lindstrom–Turk profile of edge (a, b) into ``pr``
     (:data:`methods.engine.state.Profile`): triangles around either end, their boundary
     edges (oriented as in the triangle) and the link vertices, with their counts, or
-    counts (-1, 0, 0) when the workspace is too small. ``fan`` is the mesh's (F, vhead,
+    counts (-1, 0, 0) when the workspace is too small. ``links`` is the mesh's (F, vhead,
     cnext, falive), ``work`` the scratch's (efaces, mark, tick)."""
-    (F, vhead, cnext, falive), (efaces, mark, tick) = fan, work
+    (F, vhead, cnext, falive), (efaces, mark, tick) = links, work
     tri_a, tri_b, tri_c, bnd_a, bnd_b, link = (pr.tri_a, pr.tri_b, pr.tri_c, pr.bnd_a,
                                                pr.bnd_b, pr.link)
     counts = pr.counts
