@@ -40,7 +40,6 @@ from __future__ import annotations
 import io
 import math
 import numbers
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -50,6 +49,7 @@ import numpy as np
 
 from bench.core.mesh import Mesh
 from bench.io.atomic import write_atomic
+from bench.io.cache import cache_dir
 
 __all__ = ["PROTOCOL_VERSION", "Protocol", "Evaluation", "evaluate", "registered_metrics",
            "model_metrics", "original_images", "render_views", "render_per_view", "cache_dir"]
@@ -128,12 +128,6 @@ class Evaluation:
     errors: dict = field(default_factory=dict)
     #: the screen-size evaluation (:func:`metrics.screen.summarise`), None when off
     screen: dict | None = None
-
-
-def cache_dir() -> Path:
-    """Where the originals' images are cached: ``$BENCH_CACHE`` or ``~/.cache/bench``."""
-    root = os.environ.get("BENCH_CACHE") or Path.home() / ".cache" / "bench"
-    return Path(root)
 
 
 def render_views(mesh: Mesh, original: Mesh, protocol: Protocol) -> np.ndarray:

@@ -7,6 +7,7 @@ from the code.
 
 from __future__ import annotations
 
+import os
 import textwrap
 from pathlib import Path
 
@@ -20,6 +21,10 @@ from hypothesis import settings
 settings.register_profile("fixed", derandomize=True, deadline=None)
 settings.register_profile("explore", max_examples=1000, deadline=None)
 settings.load_profile("fixed")
+
+# Files are read afresh, not from the user's mesh cache (bench.io.cache), which the tests
+# would fill with their temporary files; tests/test_mesh_cache.py turns it on.
+os.environ["BENCH_MESH_CACHE"] = "0"
 
 # -- hand-built meshes ------------------------------------------------------------------
 

@@ -54,6 +54,9 @@ from bench.core.errors import InputError
 from bench.core.mesh import Mesh
 from bench.io.atlas import split_materials
 from bench.io.atomic import write_atomic
+from bench.io.cache import cached_read
+from bench.io.cache import named_files as cached_named_files
+from bench.io.ply import ply_bytes
 from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
 
 __all__ = ["FORMATS", "SCENE_FORMATS", "apply_texture", "check_not_inputs", "check_output_path",
@@ -98,6 +101,13 @@ def load_mesh(path: str | os.PathLike, name: str | None = None, *,
     path = Path(path)
     source = str(path)
     ext = _mesh_format(path, source)
+    return cached_read(path, name, texture_file,
+                       lambda: _read_mesh(path, source, ext, name, texture_file),
+                       lambda: _named_files(path, ext))
+
+
+def _read_mesh(path: Path, source: str, ext: str, name: str | None, texture_file) -> Mesh:
+    """:func:`load_mesh` without the cache."""
     scan = {".obj": _scan_obj_once, ".ply": _scan_ply, ".off": _scan_off, ".gltf": _scan_gltf,
             ".glb": _scan_gltf}.get(ext, lambda p: {})(path)
 
@@ -278,6 +288,8 @@ def _mesh_files(mesh: Mesh, path: Path) -> list[tuple[Path, bytes]]:
         if split is not None and ext == ".obj":
             return _obj_material_files(mesh, split, path)  # exact digits
     _check_storable(mesh, path, str(path))
+    if ext == ".ply":
+        return [(path, ply_bytes(mesh))]
     if split is not None:
         scene, groups = _scene([(path.stem, mesh, split)], path.stem)
         return _export_files(scene, path, tree_postprocessor=_one_mesh_per_group(groups))
@@ -293,7 +305,7 @@ def _mesh_files(mesh: Mesh, path: Path) -> list[tuple[Path, bytes]]:
     return _export_files(tm, path)
 
 
-#: How each format stores a coordinate: trimesh writes 32-bit floats, and OBJ and OFF
+#: How each format stores a coordinate: PLY, STL and glTF as 32-bit floats, OBJ and OFF as
 #: text with 10 decimals (an OBJ with several materials is written exactly).
 _STORAGE = {".ply": "32-bit floats", ".stl": "32-bit floats", ".glb": "32-bit floats",
             ".gltf": "32-bit floats", ".obj": "10 decimals", ".off": "10 decimals"}
@@ -357,13 +369,18 @@ def input_files(source: str | os.PathLike | None) -> list[tuple[Path, str]]:
     if source is None or not Path(source).is_file():
         return []
     path = Path(source)
-    ext = path.suffix.lower()
-    files = [(path, "mesh")]
+    return [(p, kind) for p, kind in _named_files(path, path.suffix.lower()) if p.is_file()]
+
+
+def _named_files(path: Path, ext: str) -> list[tuple[Path, str]]:
+    """The files a mesh file is made of or names, whether they exist or not (those of
+    its cache entry when it was just read from there, else from the file)."""
+    known = cached_named_files(path)
+    if known is not None:
+        return known
     if ext == ".obj":
-        files = _scan_obj_once(path)["files"]
-    elif ext == ".gltf":
-        files += _gltf_files(path)
-    return [(p, kind) for p, kind in files if p.is_file()]
+        return list(_scan_obj_once(path)["files"])
+    return [(path, "mesh"), *(_gltf_files(path) if ext == ".gltf" else [])]
 
 
 def _gltf_files(path: Path) -> list[tuple[Path, str]]:
@@ -1117,6 +1134,9 @@ def _scan_obj(path: Path) -> dict:
             lines.read(path, lineno, line, encoding)
         lines.check_ranges(path)
     mtl = _scan_mtls(path, lines.mtllibs, encoding)
+    # UVs and no material file: the images in the folder decide a warning (see
+    # _warn_no_material), so the folder is one of the things the mesh is read from
+    folder = [(path.parent, "folder")] if lines.counts[1] and not lines.mtllibs else []
     text, concave = _ear_clip(data.decode(encoding), lines.big) if lines.big else (None, 0)
     if concave == 0 and encoding == "utf-8" and "latin-1" not in mtl["encodings"]:
         text = None  # trimesh reads the file itself, as it always has
@@ -1126,8 +1146,8 @@ def _scan_obj(path: Path) -> dict:
             "first_short": lines.first_short, "texture_refs": mtl["refs"],
             "texture_files": mtl["found"], "texture_unreadable": mtl["unreadable"],
             "usemtl": list(lines.usemtl), "material_textures": mtl["textures"],
-            "files": [(path, "mesh"), *mtl["files"]], "encoding": encoding, "text": text,
-            "texture_aliases": mtl["aliases"], "mtllib": bool(lines.mtllibs)}
+            "files": [(path, "mesh"), *mtl["files"], *folder], "encoding": encoding,
+            "text": text, "texture_aliases": mtl["aliases"], "mtllib": bool(lines.mtllibs)}
 
 
 #: The line heads an OBJ's vertex data starts with, and their kind (v, vt, vn).
@@ -1252,7 +1272,8 @@ class _ObjLines:
 
 
 def _scan_mtls(path: Path, mtllibs: list[bytes], encoding: str) -> dict:
-    """The texture references of an OBJ's material files: the files read (``files``),
+    """The texture references of an OBJ's material files: the files named, found or not
+    (``files``),
     textures missing (``refs``, with material files missing), found (``found``: name and
     path) and unreadable, each material's diffuse texture (``textures``), the names
     trimesh will look for instead of the file's (``aliases``) and the files' encodings."""
@@ -1262,6 +1283,7 @@ def _scan_mtls(path: Path, mtllibs: list[bytes], encoding: str) -> dict:
         mtl = path.parent / lib.decode(encoding)
         if not mtl.is_file():
             refs.append(f"{mtl.name} (material file)")
+            files.append((mtl, "material"))  # named, missing: input_files leaves it out
             continue
         files.append((mtl, "material"))
         mtl_text, mtl_encoding = _decode(mtl.read_bytes())
