@@ -128,25 +128,55 @@ def _normal3(a, b, c):
 @njit(cache=True, _nrt=False)
 def _check(u, v, p, P, links, vboundary, work, limits):
     """VALID if collapsing u into v at p is valid, else the REJECT_* code of the first
-    rule it breaks (methods.engine.policy lists the rules). ``links`` is the mesh's (F,
-    vhead, cnext, falive), ``work`` the scratch's (mark, tick, nbr_u, nbr_v, efaces),
-    ``limits`` the rules' (cos_limit, boundary_lock): the arrays it reads, not the
-    structures, whose every array a call would pass."""
-    (F, vhead, cnext, falive), (mark, tick, nbr_u, nbr_v, efaces) = links, work
-    cos_limit, boundary_lock = limits
-    k = _edge_faces(u, v, F, vhead, cnext, falive, efaces)
+    rule it breaks (methods.engine.policy lists the rules), one helper per rule.
+    ``links`` is the mesh's (F, vhead, cnext, falive), ``work`` the scratch's (mark,
+    tick, nbr_u, nbr_v, efaces), ``limits`` the rules' (cos_limit, boundary_lock): the
+    arrays it reads, not the structures, whose every array a call would pass.
+
+    The faces that move are tested in turn, each for a duplicate and then for a
+    fold-over, so the first face that breaks either rule names the rejection."""
+    (F, vhead, cnext, falive), cos_limit = links, limits[0]
+    k = _edge_faces(u, v, F, vhead, cnext, falive, work[4])
     if k > 2 or k == 0:
         return REJECT_NON_MANIFOLD  # (k == 0 cannot happen for a live edge)
+    if not _link_condition(u, v, k, links, work):
+        return REJECT_LINK_CONDITION
+    code = _boundary_rule(u, v, k, vboundary, limits[1])
+    if code != VALID:
+        return code
+    for side in range(2):
+        x = u if side == 0 else v
+        y = v if side == 0 else u
+        for c in corners(x, vhead, cnext):
+            f = c // 3
+            if falive[f] and not (F[f, 0] == y or F[f, 1] == y or F[f, 2] == y):
+                if side == 0 and _duplicates(f, u, v, links):
+                    return REJECT_DUPLICATE_FACE
+                if _folds_over(f, x, p, P, F, cos_limit):
+                    return REJECT_FOLD_OVER
+    return VALID
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _link_condition(u, v, k, links, work):
+    """The link condition: u and v share exactly the k neighbours of the k faces on
+    their edge. Leaves v's neighbours marked in ``work``."""
+    (F, vhead, cnext, falive), (mark, tick, nbr_u, nbr_v, _) = links, work
     nu = _neighbors(u, F, vhead, cnext, falive, mark, tick, nbr_u)
-    nv = _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr_v)  # mark now holds v's
+    _neighbors(v, F, vhead, cnext, falive, mark, tick, nbr_v)  # mark now holds v's
     t = tick[0]
     common = 0
     for i in range(nu):
         w = nbr_u[i]
         if w != v and w != u and mark[w] == t:
             common += 1
-    if common != k:
-        return REJECT_LINK_CONDITION
+    return common == k
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _boundary_rule(u, v, k, vboundary, boundary_lock):
+    """REJECT_BOUNDARY_LOCK for a boundary end under the lock, REJECT_BOUNDARY_PINCH for
+    an interior edge (k = 2 faces) joining two boundary vertices, else VALID."""
     if boundary_lock or k == 2:
         bu = vboundary[u]
         bv = vboundary[v]
@@ -154,51 +184,52 @@ def _check(u, v, p, P, links, vboundary, work, limits):
             return REJECT_BOUNDARY_LOCK
         if k == 2 and bu and bv:
             return REJECT_BOUNDARY_PINCH
-    # Duplicate faces: a face of u (not on the edge) must not coincide with one of v
-    # once u is renamed v. Also the fold-over test for every face that moves.
-    for side in range(2):
-        x = u if side == 0 else v
-        y = v if side == 0 else u
-        for c in corners(x, vhead, cnext):
-            f = c // 3
-            if falive[f] and not (F[f, 0] == y or F[f, 1] == y or F[f, 2] == y):
-                a = -1
-                b = -1
-                for j in range(3):
-                    if F[f, j] != x:
-                        if a == -1:
-                            a = F[f, j]
-                        else:
-                            b = F[f, j]
-                if side == 0:
-                    for c2 in corners(v, vhead, cnext):
-                        g = c2 // 3
-                        if falive[g] and not (F[g, 0] == u or F[g, 1] == u or F[g, 2] == u):
-                            if ((F[g, 0] == a or F[g, 1] == a or F[g, 2] == a)
-                                    and (F[g, 0] == b or F[g, 1] == b or F[g, 2] == b)):
-                                return REJECT_DUPLICATE_FACE
-                # fold-over: the face with x moved to p
-                i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
-                b0, b1, b2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]),
-                                      (P[i1, 0], P[i1, 1], P[i1, 2]),
-                                      (P[i2, 0], P[i2, 1], P[i2, 2]))
-                if i0 == x:  # the same triangle with x moved to p
-                    a0, a1, a2 = _normal3((p[0], p[1], p[2]), (P[i1, 0], P[i1, 1], P[i1, 2]),
-                                          (P[i2, 0], P[i2, 1], P[i2, 2]))
-                elif i1 == x:
-                    a0, a1, a2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]), (p[0], p[1], p[2]),
-                                          (P[i2, 0], P[i2, 1], P[i2, 2]))
-                else:
-                    a0, a1, a2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]),
-                                          (P[i1, 0], P[i1, 1], P[i1, 2]), (p[0], p[1], p[2]))
-                lb = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
-                la = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-                if la <= 1e-12 * lb or la == 0.0:
-                    return REJECT_FOLD_OVER
-                if lb > 0.0:
-                    if (b0 * a0 + b1 * a1 + b2 * a2) / (la * lb) < cos_limit:
-                        return REJECT_FOLD_OVER
     return VALID
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _duplicates(f, u, v, links):
+    """True when u's face f (not on the edge) becomes a duplicate of one of v's faces
+    once u is renamed v: a face of v (not on the edge) has f's two other vertices."""
+    F, vhead, cnext, falive = links
+    a = -1
+    b = -1
+    for j in range(3):
+        if F[f, j] != u:
+            if a == -1:
+                a = F[f, j]
+            else:
+                b = F[f, j]
+    for c2 in corners(v, vhead, cnext):
+        g = c2 // 3
+        if falive[g] and not (F[g, 0] == u or F[g, 1] == u or F[g, 2] == u):
+            if ((F[g, 0] == a or F[g, 1] == a or F[g, 2] == a)
+                    and (F[g, 0] == b or F[g, 1] == b or F[g, 2] == b)):
+                return True
+    return False
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _folds_over(f, x, p, P, F, cos_limit):
+    """True when face f, with its vertex x moved to p, degenerates or turns its normal
+    by more than the angle whose cosine is ``cos_limit``."""
+    i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
+    b0, b1, b2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]), (P[i1, 0], P[i1, 1], P[i1, 2]),
+                          (P[i2, 0], P[i2, 1], P[i2, 2]))
+    if i0 == x:  # the same triangle with x moved to p
+        a0, a1, a2 = _normal3((p[0], p[1], p[2]), (P[i1, 0], P[i1, 1], P[i1, 2]),
+                              (P[i2, 0], P[i2, 1], P[i2, 2]))
+    elif i1 == x:
+        a0, a1, a2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]), (p[0], p[1], p[2]),
+                              (P[i2, 0], P[i2, 1], P[i2, 2]))
+    else:
+        a0, a1, a2 = _normal3((P[i0, 0], P[i0, 1], P[i0, 2]),
+                              (P[i1, 0], P[i1, 1], P[i1, 2]), (p[0], p[1], p[2]))
+    lb = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
+    la = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    if la <= 1e-12 * lb or la == 0.0:
+        return True
+    return lb > 0.0 and (b0 * a0 + b1 * a1 + b2 * a2) / (la * lb) < cos_limit
 
 
 @njit(cache=True, _nrt=False)
