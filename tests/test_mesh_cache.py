@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from bench.core.errors import MeshWarning
+from bench.core.errors import InputError, MeshWarning
 from bench.io import cache, meshio
 from bench.io.meshio import input_files, load_mesh
 from conftest import write
@@ -23,9 +23,11 @@ FACES = "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
 
 @pytest.fixture
 def cached(tmp_path, monkeypatch):
-    """The cache on, in a folder of its own; the reads that did not come from it."""
+    """The cache on, in a folder of its own; the reads that did not come from it. Files
+    count as settled once written (the racy-file rule has its own test)."""
     monkeypatch.setenv("BENCH_MESH_CACHE", "1")
     monkeypatch.setenv("BENCH_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache, "RACY_SECONDS", 0.0)
     (tmp_path / "cache").mkdir()  # the cache's entries do not change tmp_path itself
     reads = []
     read = meshio._read_mesh
@@ -36,6 +38,12 @@ def cached(tmp_path, monkeypatch):
 
     monkeypatch.setattr(meshio, "_read_mesh", counted)
     return reads
+
+
+def new_process():
+    """Forget what this process remembers of files read (as a new process would)."""
+    cache._NAMED.clear()
+    meshio._LAST_OBJ_SCAN[:] = [None, None]
 
 
 def textured(folder, rgb=(200, 10, 10)):
@@ -55,16 +63,17 @@ def same_mesh(a, b):
     assert (a.name, a.metadata) == (b.name, b.metadata)
 
 
-def test_a_second_read_comes_from_the_cache_and_equals_the_file(tmp_path, cached):
+def test_a_second_read_comes_from_the_cache_and_equals_the_file(tmp_path, cached,
+                                                                monkeypatch):
     obj = textured(tmp_path)
     first = load_mesh(obj)
     second = load_mesh(obj)
     assert len(cached) == 1
     same_mesh(second, first)
     from_entry = input_files(obj)
-    os.environ["BENCH_MESH_CACHE"] = "0"  # the oracle: the file read afresh
+    monkeypatch.setenv("BENCH_MESH_CACHE", "0")  # the oracle: the file read afresh
     same_mesh(second, load_mesh(obj))
-    cache._NAMED.clear()
+    new_process()
     assert from_entry == input_files(obj) == [(obj, "mesh"), (tmp_path / "m.mtl", "material"),
                                               (tmp_path / "t.png", "texture")]
 
@@ -82,8 +91,11 @@ def test_a_material_file_that_appears_reads_the_file_again(tmp_path, cached):
     obj = write(tmp_path / "sq.obj", "mtllib m.mtl\n" + SQUARE + "usemtl m\n" + FACES)
     with pytest.warns(MeshWarning, match="m.mtl"):
         assert load_mesh(obj).texture is None
-    textured(tmp_path)
+    Image.fromarray(np.full((2, 4, 3), 7, np.uint8)).save(tmp_path / "t.png")
+    write(tmp_path / "m.mtl", "newmtl m\nmap_Kd t.png\n")  # the OBJ itself unchanged
     assert load_mesh(obj).texture is not None
+    new_process()
+    assert load_mesh(obj).texture is not None  # from the entry that read stored
     assert len(cached) == 2
 
 
@@ -94,11 +106,24 @@ def test_a_read_from_the_cache_gives_the_same_warnings(tmp_path, cached):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             load_mesh(obj)
-        messages.append([str(w.message) for w in caught if w.category is MeshWarning])
+        messages.append([(str(w.message), w.filename, w.lineno) for w in caught
+                         if w.category is MeshWarning])
     assert len(cached) == 1
     assert messages[0] and messages[0] == messages[1]
     with pytest.raises(MeshWarning), warnings.catch_warnings():
         warnings.simplefilter("error")  # the filters in force decide, as for a read
+        load_mesh(obj)
+    with warnings.catch_warnings(record=True) as caught:  # a module's filter applies
+        warnings.simplefilter("always")
+        warnings.filterwarnings("ignore", category=MeshWarning, module="bench.io.meshio")
+        load_mesh(obj)
+    assert not [w for w in caught if w.category is MeshWarning]
+
+
+def test_warnings_before_an_error_are_given(tmp_path, cached):
+    obj = write(tmp_path / "bad.obj", SQUARE.replace("vt 1 1", "vt 1e30 1")
+                + "f 1/1 2/2 3/3 4/4\n")
+    with pytest.warns(MeshWarning, match="triangulated"), pytest.raises(InputError):
         load_mesh(obj)
 
 
@@ -112,6 +137,15 @@ def test_names_textures_and_images_beside_an_obj_without_materials_count(tmp_pat
             assert load_mesh(obj).texture is None
     assert load_mesh(obj, texture_file=tmp_path / "u.png").texture is not None
     assert len(cached) == 4
+
+
+def test_a_file_modified_just_before_its_reading_is_not_cached(tmp_path, cached,
+                                                               monkeypatch):
+    monkeypatch.setattr(cache, "RACY_SECONDS", 2.0)
+    obj = textured(tmp_path)
+    load_mesh(obj)
+    load_mesh(obj)
+    assert len(cached) == 2 and not list((tmp_path / "cache").rglob("*.pickle"))
 
 
 def test_a_damaged_entry_or_an_unwritable_folder_is_no_error(tmp_path, cached, monkeypatch):
@@ -129,8 +163,8 @@ def test_a_damaged_entry_or_an_unwritable_folder_is_no_error(tmp_path, cached, m
     assert len(cached) == 4
 
 
-def test_off_writes_nothing(tmp_path, cached):
-    os.environ["BENCH_MESH_CACHE"] = "0"
+def test_off_writes_nothing(tmp_path, cached, monkeypatch):
+    monkeypatch.setenv("BENCH_MESH_CACHE", "0")
     obj = textured(tmp_path)
     load_mesh(obj)
     load_mesh(obj)

@@ -3,20 +3,25 @@ unpickling, not a parse, a validation and (for most formats) trimesh's import.
 
 An entry is found by what was asked for: the path as given and as an absolute path, the
 mesh's name, the texture file given with it, and a fingerprint of the code that reads
-files (the sources of :mod:`bench.io` and :mod:`bench.core.mesh`, and the installed
-versions of trimesh, numpy and Pillow). It holds the mesh, the
-:class:`~bench.core.errors.MeshWarning` s its reading gave (given again at every read
-from the cache, so no warning is lost), and the identity (inode, size, modification and
-change times) of every file the mesh was read from: the file, an OBJ's material files and
-the images they name, a glTF's buffers and images, the texture given with it, and the
-files it names that were missing (a file that appears changes the mesh too). An entry is
-used only while all of them are unchanged.
+files (the sources of :mod:`bench.io` and :mod:`bench.core.mesh`, and the files of the
+installed trimesh, numpy and Pillow: their ``__init__.py``'s path, size and time). It
+holds the mesh, the :class:`~bench.core.errors.MeshWarning` s its reading gave (given
+again at every read from the cache, as from the same place), and the identity (device,
+inode, size, modification and change times) of every file the mesh was read from or
+looked for: the file, an OBJ's material files and the images they name, a glTF's
+buffers and images, the texture given with it, those it names that were missing, and
+the file's folder when one was missing (trimesh then looks for the bare name there) or
+an image beside it can decide a warning. An entry is used only while all of them are
+unchanged. A file modified less than :data:`RACY_SECONDS` before its reading began is
+not cached (a file system with coarse times could hide a second change, as git's racy
+files).
 
 The cache never turns a read into an error: a damaged or unreadable entry, an entry of
-another version, or a folder that cannot be written means the file is read as if there
-were no cache. Where: ``$BENCH_CACHE/meshes`` (``~/.cache/bench/meshes`` by default,
-beside the originals' images); ``BENCH_MESH_CACHE=0`` turns it off. Entries over
-:data:`BUDGET_BYTES` in all are removed, the least recently used first.
+another version, a folder that cannot be written or anything else going wrong in it
+means the file is read as if there were no cache. Where: ``$BENCH_CACHE/meshes``
+(``~/.cache/bench/meshes`` by default, beside the originals' images);
+``BENCH_MESH_CACHE=0`` turns it off. Entries over :data:`BUDGET_BYTES` in all are
+removed, the least recently used first.
 """
 
 from __future__ import annotations
@@ -24,22 +29,25 @@ from __future__ import annotations
 import hashlib
 import os
 import pickle
-import warnings
+import time
 from collections.abc import Callable
 from pathlib import Path
 
-from bench.core.errors import MeshWarning
 from bench.core.mesh import Mesh
 from bench.io.atomic import write_atomic
+from bench.io.validate import recorded_warnings, warn_again
 
-__all__ = ["BUDGET_BYTES", "cache_dir", "cached_read", "named_files"]
+__all__ = ["BUDGET_BYTES", "RACY_SECONDS", "cache_dir", "cached_read", "file_identity",
+           "named_files"]
 
 #: The most the mesh entries may take on disk together.
 BUDGET_BYTES = 2 * 1024**3
+#: A file modified this recently before its reading began is not cached.
+RACY_SECONDS = 2.0
 #: Bumped when an entry's layout changes.
-_LAYOUT = 2
+_LAYOUT = 3
 _FINGERPRINT: list = []
-#: path -> the (path, kind) files of the entry last read for it (see named_files)
+#: path -> the (path, kind, identity) files of the entry last read for it (named_files)
 _NAMED: dict = {}
 
 
@@ -56,43 +64,55 @@ def cached_read(path: Path, name: str | None, texture_file, read: Callable[[], M
     the mesh was read from or looked for (see the module docstring)."""
     if os.environ.get("BENCH_MESH_CACHE", "1") == "0":
         return read()
-    entry = _entry_path(path, name, texture_file)
-    found = _lookup(entry)
+    try:
+        entry = _entry_path(path, name, texture_file)
+        found = _lookup(entry)
+    except Exception:  # noqa: BLE001 - the cache never fails a read
+        entry = found = None
     if found is not None:
         mesh, messages, files = found
-        for message, filename, lineno in messages:
-            warnings.warn_explicit(message, MeshWarning, filename, lineno)
         _NAMED[str(path)] = files
+        for message in messages:
+            warn_again(*message)
         return mesh
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    began = time.time_ns()
+    with recorded_warnings() as messages:  # given as they come, and noted
         mesh = read()
-    messages = []
-    for w in caught:  # given again as they came, whatever the filters say
-        if issubclass(w.category, MeshWarning):
-            messages.append((str(w.message), w.filename, w.lineno))
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    files = [*named_files(), *([(Path(texture_file), "given")] if texture_file else [])]
-    _store(entry, {"layout": _LAYOUT, "mesh": mesh, "warnings": messages,
-                   "files": [(str(f), kind, _identity(f)) for f, kind in files]})
+    if entry is not None:
+        try:
+            given = [(Path(texture_file), "given")] if texture_file else []
+            files = [(str(f), kind, file_identity(f)) for f, kind in [*named_files(), *given]]
+            if not _racy(files, began):
+                _store(entry, {"layout": _LAYOUT, "files": files}, (mesh, messages))
+        except Exception:  # noqa: BLE001, S110 - no cache, no harm
+            pass
     return mesh
 
 
 def named_files(path: Path) -> list | None:
     """The ``(path, kind)`` files of the entry this process last read ``path`` from (see
-    ``cached_read``), if they are all as they were; else None."""
+    :func:`cached_read`), if they are all as they were; else None."""
     files = _NAMED.get(str(path))
-    if files is None or any(_identity(Path(f)) != identity for f, _, identity in files):
+    if files is None or any(file_identity(Path(f)) != identity for f, _, identity in files):
         return None
     return [(Path(f), kind) for f, kind, _ in files if kind != "given"]
 
 
-def _identity(path: Path):
+def file_identity(path: Path):
+    """(device, inode, size, modification and change times in ns) of ``path``, None
+    when it does not exist (or cannot be examined)."""
     try:
         st = os.stat(path)
-    except OSError:
+    except (OSError, ValueError):
         return None
     return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+
+
+def _racy(files: list, began: int) -> bool:
+    """Whether a file was modified less than RACY_SECONDS before ``began`` (or after
+    it)."""
+    limit = began - int(RACY_SECONDS * 1e9)
+    return any(identity is not None and identity[3] >= limit for _, _, identity in files)
 
 
 def _fingerprint() -> str:
@@ -109,7 +129,7 @@ def _fingerprint() -> str:
         for package in ("trimesh", "numpy", "PIL"):
             spec = importlib.util.find_spec(package)
             origin = None if spec is None else spec.origin
-            digest.update(repr((package, origin, origin and _identity(Path(origin))[2:4]))
+            digest.update(repr((package, origin, origin and file_identity(Path(origin))))
                           .encode())
         _FINGERPRINT.append(digest.hexdigest())
     return _FINGERPRINT[0]
@@ -124,31 +144,30 @@ def _entry_path(path: Path, name, texture_file) -> Path:
 
 
 def _lookup(entry: Path):
-    """``(mesh, warnings, files)`` of a valid entry, else None."""
+    """``(mesh, warnings, files)`` of a valid entry, else None. An entry is two pickles:
+    its header (layout and files), checked before the mesh is read, then the mesh and
+    its warnings."""
     try:
         with open(entry, "rb") as f:
-            data = pickle.load(f)
-        if data["layout"] != _LAYOUT:
-            return None
-        if any(_identity(Path(name)) != identity for name, _, identity in data["files"]):
-            return None
-        mesh, messages, files = data["mesh"], data["warnings"], data["files"]
+            header = pickle.load(f)
+            if header["layout"] != _LAYOUT or any(
+                    file_identity(Path(name)) != identity for name, _, identity in header["files"]):
+                return None
+            mesh, messages = pickle.load(f)
     except Exception:  # noqa: BLE001 - missing or damaged: read the file
         return None
     try:
         os.utime(entry)  # recently used
     except OSError:
         pass
-    return mesh, messages, files
+    return mesh, messages, header["files"]
 
 
-def _store(entry: Path, data: dict) -> None:
-    try:
-        entry.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(entry, pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL))
-        _prune(entry.parent)
-    except OSError:
-        pass  # no cache, no harm
+def _store(entry: Path, header: dict, payload: tuple) -> None:
+    entry.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(entry, pickle.dumps(header, protocol=pickle.HIGHEST_PROTOCOL)
+                 + pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL))
+    _prune(entry.parent)
 
 
 def _prune(folder: Path) -> None:

@@ -54,7 +54,7 @@ from bench.core.errors import InputError
 from bench.core.mesh import Mesh
 from bench.io.atlas import split_materials
 from bench.io.atomic import write_atomic
-from bench.io.cache import cached_read
+from bench.io.cache import cached_read, file_identity
 from bench.io.cache import named_files as cached_named_files
 from bench.io.ply import ply_bytes
 from bench.io.validate import UV_LIMIT, build_mesh, check_uv, warn
@@ -380,7 +380,10 @@ def _named_files(path: Path, ext: str) -> list[tuple[Path, str]]:
         return known
     if ext == ".obj":
         return list(_scan_obj_once(path)["files"])
-    return [(path, "mesh"), *(_gltf_files(path) if ext == ".gltf" else [])]
+    files = [(path, "mesh"), *(_gltf_files(path) if ext == ".gltf" else [])]
+    if any(not p.is_file() for p, _ in files):  # trimesh looks for the bare name there
+        files.append((path.parent, "folder"))
+    return files
 
 
 def _gltf_files(path: Path) -> list[tuple[Path, str]]:
@@ -1106,14 +1109,19 @@ _LAST_OBJ_SCAN: list = [None, None]
 
 
 def _scan_obj_once(path: Path) -> dict:
-    """:func:`_scan_obj`, kept for the same file (device, inode, size and modification
-    time unchanged) until another OBJ is scanned. Treat the result as read-only."""
-    st = os.stat(path)
-    identity = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
-    if _LAST_OBJ_SCAN[0] != identity:
-        _LAST_OBJ_SCAN[:] = [None, _scan_obj(path)]
-        _LAST_OBJ_SCAN[0] = identity
-    return _LAST_OBJ_SCAN[1]
+    """:func:`_scan_obj`, kept while the OBJ and every file the scan lists (material
+    files and images, found or not, and the folder when it counts) are unchanged, until
+    another OBJ is scanned. Treat the result as read-only."""
+    known, scan = _LAST_OBJ_SCAN
+    if known is not None and known == _scan_identity(path, scan):
+        return scan
+    scan = _scan_obj(path)
+    _LAST_OBJ_SCAN[:] = [_scan_identity(path, scan), scan]
+    return scan
+
+
+def _scan_identity(path: Path, scan: dict) -> tuple:
+    return (str(path), *(file_identity(p) for p, _ in scan["files"]))
 
 
 def _scan_obj(path: Path) -> dict:
@@ -1134,9 +1142,12 @@ def _scan_obj(path: Path) -> dict:
             lines.read(path, lineno, line, encoding)
         lines.check_ranges(path)
     mtl = _scan_mtls(path, lines.mtllibs, encoding)
-    # UVs and no material file: the images in the folder decide a warning (see
-    # _warn_no_material), so the folder is one of the things the mesh is read from
-    folder = [(path.parent, "folder")] if lines.counts[1] and not lines.mtllibs else []
+    # The folder is one of the things the mesh is read from when a file it names is
+    # missing (trimesh then looks for its bare name there) or, with UVs and no material
+    # file, when the images in it decide a warning (_warn_no_material).
+    missing = any(not p.is_file() for p, _ in mtl["files"])
+    folder = [(path.parent, "folder")] if missing or (lines.counts[1] and not lines.mtllibs) \
+        else []
     text, concave = _ear_clip(data.decode(encoding), lines.big) if lines.big else (None, 0)
     if concave == 0 and encoding == "utf-8" and "latin-1" not in mtl["encodings"]:
         text = None  # trimesh reads the file itself, as it always has

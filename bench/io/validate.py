@@ -26,14 +26,16 @@ repeat too large to pack   error naming the material
 
 from __future__ import annotations
 
+import sys
 import warnings
+from contextlib import contextmanager
 
 import numpy as np
 
 from bench.core.errors import InputError, MeshWarning
 from bench.core.mesh import Mesh
 
-__all__ = ["UV_LIMIT", "build_mesh", "check_uv", "warn"]
+__all__ = ["UV_LIMIT", "build_mesh", "check_uv", "recorded_warnings", "warn", "warn_again"]
 
 #: The largest texture coordinate accepted (in texture periods): beyond, a UV is taken
 #: for corrupt data; no texture repeats that often, and a 32-bit float (as GPUs and
@@ -42,8 +44,41 @@ UV_LIMIT = 1e6
 
 
 def warn(message: str) -> None:
-    """Issue a :class:`MeshWarning` (shown by the CLI as one ``bench: warning:`` line)."""
+    """Issue a :class:`MeshWarning` (shown by the CLI as one ``bench: warning:`` line),
+    attributed to the caller of the function that calls this; noted as well inside
+    :func:`recorded_warnings`."""
     warnings.warn(message, MeshWarning, stacklevel=3)
+    if _RECORDERS:
+        frame = sys._getframe(2)
+        _RECORDERS[-1].append((message, frame.f_code.co_filename, frame.f_lineno,
+                               frame.f_globals.get("__name__", "")))
+
+
+#: The lists :func:`recorded_warnings` is filling, innermost last.
+_RECORDERS: list[list] = []
+
+
+@contextmanager
+def recorded_warnings():
+    """The :class:`MeshWarning` s issued inside, each as (message, filename, line,
+    module), in a list; they are issued as usual too (:func:`warn_again` issues one
+    again, as from the same place)."""
+    got: list = []
+    _RECORDERS.append(got)
+    try:
+        yield got
+    finally:
+        _RECORDERS.pop()
+
+
+def warn_again(message: str, filename: str, lineno: int, module: str) -> None:
+    """Issue a warning recorded by :func:`recorded_warnings` as :func:`warn` issued it:
+    from the same place, so a filter on its module applies and the default filter shows
+    it once per place."""
+    owner = sys.modules.get(module)
+    registry = None if owner is None else vars(owner).setdefault("__warningregistry__", {})
+    warnings.warn_explicit(message, MeshWarning, filename, lineno, module=module,
+                           registry=registry)
 
 
 def check_uv(uv: np.ndarray, source: str, *, finite_checked: bool = False) -> None:

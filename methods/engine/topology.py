@@ -133,8 +133,9 @@ def _check(u, v, p, P, links, vboundary, work, limits):
     tick, nbr_u, nbr_v, efaces), ``limits`` the rules' (cos_limit, boundary_lock): the
     arrays it reads, not the structures, whose every array a call would pass.
 
-    The faces that move are tested in turn, each for a duplicate and then for a
-    fold-over, so the first face that breaks either rule names the rejection."""
+    The faces that move are tested in turn, u's each for a duplicate and then a
+    fold-over, then v's for a fold-over, so the first face that breaks a rule names the
+    rejection."""
     (F, vhead, cnext, falive), cos_limit = links, limits[0]
     k = _edge_faces(u, v, F, vhead, cnext, falive, work[4])
     if k > 2 or k == 0:
@@ -150,7 +151,7 @@ def _check(u, v, p, P, links, vboundary, work, limits):
         for c in corners(x, vhead, cnext):
             f = c // 3
             if falive[f] and not (F[f, 0] == y or F[f, 1] == y or F[f, 2] == y):
-                if side == 0 and _duplicates(f, u, v, links):
+                if side == 0 and _makes_duplicate(f, u, v, links):
                     return REJECT_DUPLICATE_FACE
                 if _folds_over(f, x, p, P, F, cos_limit):
                     return REJECT_FOLD_OVER
@@ -188,7 +189,7 @@ def _boundary_rule(u, v, k, vboundary, boundary_lock):
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _duplicates(f, u, v, links):
+def _makes_duplicate(f, u, v, links):
     """True when u's face f (not on the edge) becomes a duplicate of one of v's faces
     once u is renamed v: a face of v (not on the edge) has f's two other vertices."""
     F, vhead, cnext, falive = links
