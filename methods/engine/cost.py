@@ -209,10 +209,12 @@ def _guarded_optimal_point(a, b, l2, mesh, qsum, out_p):
         best_of_ends(qsum, P[a], P[b], out_p)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _cost_at(p, qsum, weights, pr, l2):
     """The quadric and Lindstrom–Turk terms of a collapse to ``p``, weighted: the
-    summed quadric ``qsum``, the edge's profile ``pr`` and squared length ``l2``."""
+    summed quadric ``qsum``, the edge's profile ``pr`` and squared length ``l2``.
+    Inlined: called with the profile's seven arrays, it cost the re-costing of the
+    loop's requeue a few per cent (docs/experiments.md)."""
     cost = 0.0
     if weights.quadric != 0.0:
         cost += weights.quadric * quadric_error(qsum, p)
