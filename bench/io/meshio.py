@@ -1121,6 +1121,7 @@ def _scan_obj_once(path: Path) -> dict:
 
 
 def _scan_identity(path: Path, scan: dict) -> tuple:
+    """What the scan of ``path`` depends on: the path and its files' identities."""
     return (str(path), *(file_identity(p) for p, _ in scan["files"]))
 
 
@@ -1284,10 +1285,10 @@ class _ObjLines:
 
 def _scan_mtls(path: Path, mtllibs: list[bytes], encoding: str) -> dict:
     """The texture references of an OBJ's material files: the files named, found or not
-    (``files``),
-    textures missing (``refs``, with material files missing), found (``found``: name and
-    path) and unreadable, each material's diffuse texture (``textures``), the names
-    trimesh will look for instead of the file's (``aliases``) and the files' encodings."""
+    (``files``), textures missing (``refs``, with material files missing), found
+    (``found``: name and path) and unreadable, each material's diffuse texture
+    (``textures``), the names trimesh will look for instead of the file's (``aliases``)
+    and the files' encodings."""
     refs, found, unreadable, textures, files = [], [], [], {}, []
     encodings, aliases = [], {}
     for lib in mtllibs:
