@@ -58,9 +58,9 @@ def cache_dir() -> Path:
 
 
 def cached_read(path: Path, name: str | None, texture_file, read: Callable[[], Mesh],
-                named_files: Callable[[], list]) -> Mesh:
+                sources: Callable[[], list]) -> Mesh:
     """``read()``'s mesh, from the cache when its entry is still valid, else read and
-    stored. ``named_files()``, called after a read, gives ``(path, kind)`` for each file
+    stored. ``sources()``, called after a read, gives ``(path, kind)`` for each file
     the mesh was read from or looked for (see the module docstring)."""
     if os.environ.get("BENCH_MESH_CACHE", "1") == "0":
         return read()
@@ -81,7 +81,7 @@ def cached_read(path: Path, name: str | None, texture_file, read: Callable[[], M
     if entry is not None:
         try:
             given = [(Path(texture_file), "given")] if texture_file else []
-            files = [(str(f), kind, file_identity(f)) for f, kind in [*named_files(), *given]]
+            files = [(str(f), kind, file_identity(f)) for f, kind in [*sources(), *given]]
             if not _racy(files, began):
                 _store(entry, {"layout": _LAYOUT, "files": files}, (mesh, messages))
         except Exception:  # noqa: BLE001, S110 - no cache, no harm
